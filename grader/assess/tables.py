@@ -1,0 +1,103 @@
+"""Read a CSV or XLSX file into rows of strings, with spreadsheet row numbers.
+
+Both readers hand back the cells as text exactly as a person would read them,
+so that later checks ("is this 1-5?") see what the instructor sees. Any parse
+failure becomes an :class:`AssessmentError` naming the file.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import io
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from grader.errors import AssessmentError
+
+CSV_SUFFIXES = frozenset({".csv", ".txt"})
+XLSX_SUFFIXES = frozenset({".xlsx", ".xlsm"})
+
+
+@dataclass(frozen=True)
+class Table:
+    """A file's cells as text; ``rows[i]`` is spreadsheet row ``i + 1``."""
+
+    name: str
+    rows: tuple[tuple[str, ...], ...]
+
+
+def column_letter(index: int) -> str:
+    """Spreadsheet column letter of a 0-based column index (0 -> A, 26 -> AA)."""
+    letters = ""
+    index += 1
+    while index:
+        index, rest = divmod(index - 1, 26)
+        letters = chr(ord("A") + rest) + letters
+    return letters
+
+
+def read_table(path: Path) -> Table:
+    """Read ``path`` (CSV or XLSX); raise if unreadable or empty."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix in CSV_SUFFIXES:
+        rows = _read_csv(path)
+    elif suffix in XLSX_SUFFIXES:
+        rows = _read_xlsx(path)
+    else:
+        raise AssessmentError(f"{path.name}: unsupported file type {suffix or '(none)'}; use .csv or .xlsx")
+    rows = _trim(rows)
+    if not rows:
+        raise AssessmentError(f"{path.name}: the file is empty")
+    return Table(name=path.name, rows=rows)
+
+
+def _read_csv(path: Path) -> list[list[str]]:
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise AssessmentError(f"{path.name}: cannot read the file ({exc.strerror})") from exc
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        text = raw.decode("cp1252", errors="replace")
+    try:
+        return [list(row) for row in csv.reader(io.StringIO(text, newline=""))]
+    except csv.Error as exc:
+        raise AssessmentError(f"{path.name}: not a valid CSV file ({exc})") from exc
+
+
+def _read_xlsx(path: Path) -> list[list[str]]:
+    from openpyxl import load_workbook
+
+    try:
+        workbook = load_workbook(path, read_only=True, data_only=True)
+    except (OSError, zipfile.BadZipFile, KeyError, ValueError) as exc:
+        raise AssessmentError(f"{path.name}: not a readable XLSX workbook ({exc})") from exc
+    try:
+        sheet = workbook.worksheets[0]
+        return [[_cell_text(value) for value in row] for row in sheet.iter_rows(values_only=True)]
+    finally:
+        workbook.close()
+
+
+def _cell_text(value: object) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "TRUE" if value else "FALSE"
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    if isinstance(value, dt.datetime):
+        return value.isoformat(sep=" ")
+    return str(value)
+
+
+def _trim(rows: list[list[str]]) -> tuple[tuple[str, ...], ...]:
+    """Drop trailing blank rows; pad every row to the same width."""
+    while rows and not any(cell.strip() for cell in rows[-1]):
+        rows.pop()
+    width = max((len(row) for row in rows), default=0)
+    return tuple(tuple(row) + ("",) * (width - len(row)) for row in rows)

@@ -1,0 +1,64 @@
+"""Command-line entry point: argument parsing only.
+
+Each area registers its verbs through a ``register(subparsers)`` function in its
+own ``commands`` module; a verb handler returns the process exit code. Any
+:class:`grader.errors.GraderError` becomes a one-line message and exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from grader import __version__
+from grader.errors import GraderError
+
+#: Modules whose ``register(subparsers)`` adds verbs, in help order.
+_COMMAND_MODULES = (
+    "grader.commands",
+    "grader.model.commands",
+    "grader.grading.commands",
+    "grader.gap.commands",
+    "grader.assess.commands",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="grader",
+        description="Answer keys, autograding, assessment reports and sim-to-real diagnosis "
+        "for the hydraulic servo positioner lab.",
+    )
+    parser.add_argument("--version", action="version", version=f"grader {__version__}")
+    sub = parser.add_subparsers(dest="verb", metavar="VERB")
+    for name in _COMMAND_MODULES:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name == name:
+                continue
+            raise
+        module.register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "handler", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.handler(args))
+    except GraderError as exc:
+        print(f"grader {args.verb}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,105 @@
+"""CSV tables with ``name [unit]`` headers: read with validation, write canonically."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from grader.datasets.schema import TableSpec
+from grader.errors import DatasetError, UnitError
+from grader.units import parse_unit
+
+MAX_BYTES = 20_000_000
+MAX_ROWS = 1_000_000
+_HEADER = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*\[(.+)\]\s*$")
+
+Table = dict[str, NDArray[np.float64]]
+
+
+def _parse_header(path: Path, cells: list[str], spec: TableSpec) -> list[tuple[str, float, str]]:
+    """(column name, scale to internal, internal unit) for each header cell."""
+    out = []
+    wanted = {**spec.required, **spec.optional}
+    for col, cell in enumerate(cells, start=1):
+        m = _HEADER.match(cell)
+        if not m:
+            raise DatasetError(f"{path.name}: header cell {col} {cell!r} must look like 'name [unit]', e.g. 't [s]'")
+        name, unit_text = m.group(1), m.group(2).strip()
+        if name not in wanted:
+            out.append((name, math.nan, ""))
+            continue
+        try:
+            unit = parse_unit(unit_text, where=f"{path.name}: column {name!r}")
+            scale = float((1 * unit).to(wanted[name]).magnitude)
+        except UnitError as exc:
+            raise DatasetError(str(exc)) from None
+        except Exception:
+            raise DatasetError(
+                f"{path.name}: column {name!r} has unit [{unit_text}], which is not a {wanted[name]}-like unit"
+            ) from None
+        out.append((name, scale, wanted[name]))
+    missing = [c for c in spec.required if c not in {n for n, _, _ in out}]
+    if missing:
+        raise DatasetError(f"{path.name}: missing column(s) {', '.join(missing)} (header has {', '.join(cells)})")
+    names = [n for n, _, _ in out]
+    dupes = sorted({n for n in names if names.count(n) > 1})
+    if dupes:
+        raise DatasetError(f"{path.name}: column(s) {', '.join(dupes)} appear more than once")
+    return out
+
+
+def read_table(path: Path, spec: TableSpec) -> Table:
+    """Read a CSV into internal-unit arrays; raises DatasetError naming file, row and column."""
+    if not path.is_file():
+        raise DatasetError(f"{path.name}: file not found in {path.parent}")
+    if path.stat().st_size > MAX_BYTES:
+        raise DatasetError(f"{path.name}: larger than {MAX_BYTES // 1_000_000} MB")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise DatasetError(f"{path.name}: not UTF-8 text") from None
+    rows = list(csv.reader(io.StringIO(text)))
+    rows = [r for r in rows if any(c.strip() for c in r)]
+    if not rows:
+        raise DatasetError(f"{path.name}: empty file")
+    header = _parse_header(path, rows[0], spec)
+    body = rows[1:]
+    if len(body) > MAX_ROWS:
+        raise DatasetError(f"{path.name}: more than {MAX_ROWS} rows")
+    if len(body) < spec.min_rows:
+        raise DatasetError(f"{path.name}: {len(body)} data rows, need at least {spec.min_rows}")
+    return _convert(path, header, body)
+
+
+def _convert(path: Path, header: list[tuple[str, float, str]], body: list[list[str]]) -> Table:
+    data = np.empty((len(body), len(header)))
+    for i, row in enumerate(body):
+        line = i + 2  # 1-based, after the header
+        if len(row) != len(header):
+            raise DatasetError(f"{path.name}: row {line} has {len(row)} cells, header has {len(header)}")
+        for j, cell in enumerate(row):
+            if math.isnan(header[j][1]):
+                continue
+            try:
+                value = float(cell)
+            except ValueError:
+                raise DatasetError(f"{path.name}: row {line}, column {header[j][0]!r}: {cell!r} is not a number") from None
+            if not math.isfinite(value):
+                raise DatasetError(f"{path.name}: row {line}, column {header[j][0]!r}: {cell!r} is not a finite number")
+            data[i, j] = value
+    return {name: data[:, j] * scale for j, (name, scale, _) in enumerate(header) if not math.isnan(scale)}
+
+
+def write_table(path: Path, columns: dict[str, tuple[str, NDArray[np.float64]]], *, digits: int = 9) -> None:
+    """Write ``{name: (unit, values)}`` as a CSV with ``name [unit]`` headers."""
+    names = list(columns)
+    arrays = [np.asarray(columns[n][1], dtype=float) for n in names]
+    lines = [",".join(f"{n} [{columns[n][0]}]" for n in names)]
+    lines += [",".join(f"{v:.{digits}g}" for v in row) for row in zip(*arrays)]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")

@@ -1,0 +1,143 @@
+"""Load, validate, hash and write lab datasets (a folder: manifest + CSV files)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+from pydantic import ValidationError
+
+from grader.datasets.csvio import Table, read_table, write_table
+from grader.datasets.schema import CALIBRATION, FLOW_TEST, FRICTION, RUN, Manifest, RunSpec
+from grader.errors import DatasetError, GraderError
+from grader.model.params import Controller
+
+MANIFEST_NAMES = ("manifest.json", "manifest.yaml", "manifest.yml")
+MAX_MANIFEST_BYTES = 1_000_000
+
+
+@dataclass(frozen=True)
+class Run:
+    """One closed-loop run in internal units: t [s], r and y [in], u [V] or None."""
+
+    spec: RunSpec
+    t: NDArray[np.float64]
+    r: NDArray[np.float64]
+    y: NDArray[np.float64]
+    u: NDArray[np.float64] | None = None
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    @property
+    def controller(self) -> Controller:
+        c = self.spec.controller
+        return Controller(Kp=c.Kp, Ki=c.Ki, Kd=c.Kd)
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A validated lab dataset with tables converted to internal units."""
+
+    root: Path
+    manifest: Manifest
+    given: dict[str, float]
+    calibration: Table | None
+    flow_test: Table | None
+    friction: Table | None
+    runs: tuple[Run, ...] = field(default_factory=tuple)
+    inputs_sha256: str = ""
+
+    def runs_of(self, kind: str) -> tuple[Run, ...]:
+        return tuple(r for r in self.runs if r.spec.kind == kind)
+
+
+def _pydantic_message(source: str, exc: ValidationError) -> str:
+    err = exc.errors()[0]
+    loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
+    more = f" (+{len(exc.errors()) - 1} more)" if len(exc.errors()) > 1 else ""
+    return f"{source}: field {loc}: {err['msg']}{more}"
+
+
+def read_manifest(root: Path) -> tuple[Manifest, Path]:
+    """Find and validate the manifest in ``root``."""
+    if not root.is_dir():
+        raise DatasetError(f"{root}: not a dataset folder")
+    path = next((root / n for n in MANIFEST_NAMES if (root / n).is_file()), None)
+    if path is None:
+        raise DatasetError(f"{root}: no manifest.json or manifest.yaml")
+    if path.stat().st_size > MAX_MANIFEST_BYTES:
+        raise DatasetError(f"{path.name}: manifest larger than 1 MB")
+    try:
+        text = path.read_text(encoding="utf-8")
+        raw = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
+    except (json.JSONDecodeError, yaml.YAMLError, UnicodeDecodeError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise DatasetError(f"{path.name}: not valid {path.suffix[1:].upper()}: {first}") from None
+    if not isinstance(raw, dict):
+        raise DatasetError(f"{path.name}: must hold a mapping (object) at the top level")
+    try:
+        return Manifest.model_validate(raw), path
+    except ValidationError as exc:
+        raise DatasetError(_pydantic_message(path.name, exc)) from None
+    except GraderError as exc:
+        raise DatasetError(f"{path.name}: {exc}") from None
+
+
+def _check_run(run: Run) -> None:
+    name = run.spec.file
+    dt = np.diff(run.t)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        raise DatasetError(f"{name}: time is not strictly increasing at row {bad[0] + 3}")
+
+
+def _hash(root: Path, manifest_path: Path, files: list[str]) -> str:
+    h = hashlib.sha256()
+    for name in [manifest_path.name, *sorted(set(files))]:
+        h.update(name.encode() + b"\0" + (root / name).read_bytes().replace(b"\r\n", b"\n") + b"\0")
+    return h.hexdigest()
+
+
+def load(root: str | Path) -> Dataset:
+    """Load and validate the dataset in folder ``root``."""
+    root = Path(root)
+    manifest, manifest_path = read_manifest(root)
+    try:
+        given = manifest.given.values()
+    except GraderError as exc:
+        raise DatasetError(f"{manifest_path.name}: {exc}") from None
+    tables = {
+        key: read_table(root / name, spec) if name else None
+        for key, name, spec in (
+            ("calibration", manifest.calibration, CALIBRATION),
+            ("flow_test", manifest.flow_test, FLOW_TEST),
+            ("friction", manifest.friction, FRICTION),
+        )
+    }
+    runs = []
+    for spec in manifest.runs:
+        table = read_table(root / spec.file, RUN)
+        run = Run(spec=spec, t=table["t"], r=table["r"], y=table["y"], u=table.get("u"))
+        _check_run(run)
+        runs.append(run)
+    files = [n for n in (manifest.calibration, manifest.flow_test, manifest.friction) if n]
+    files += [r.file for r in manifest.runs]
+    return Dataset(root, manifest, given, runs=tuple(runs), inputs_sha256=_hash(root, manifest_path, files), **tables)
+
+
+def write_dataset(root: str | Path, manifest: Manifest, tables: dict[str, dict[str, tuple[str, NDArray[np.float64]]]]) -> Path:
+    """Write ``manifest.json`` and each ``{file name: {column: (unit, values)}}`` table into ``root``."""
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    for name, columns in sorted(tables.items()):
+        write_table(root / name, columns)
+    text = json.dumps(manifest.model_dump(mode="json", exclude_none=True), indent=2) + "\n"
+    (root / "manifest.json").write_text(text, encoding="utf-8")
+    return root

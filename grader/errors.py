@@ -1,0 +1,71 @@
+"""The exception tree of `grader`.
+
+Every error a user can provoke derives from :class:`GraderError` and carries a
+one-line, specific message (naming the file, row, column or field at fault).
+The CLI prints that message and exits non-zero; no traceback reaches a user.
+
+::
+
+    GraderError
+    ├── UnitError          a quantity string pint cannot parse, or of the wrong dimension
+    ├── DatasetError       a lab dataset (manifest, CSV) is missing, malformed or inconsistent
+    ├── ModelError         the physics cannot be evaluated (e.g. unstable loop where stability is needed)
+    ├── IdentificationError  the data do not support an identification step
+    ├── KeyFileError       an answer-key file is malformed
+    ├── RubricError        a rubric file is malformed (an instructor mistake)
+    ├── SubmissionError    a submission cannot be read (becomes feedback, never stops a batch)
+    ├── ExpressionError    a submitted expression is rejected by the AST whitelist or limits
+    ├── SimulationError    the rig simulator was given an unknown effect or an out-of-range value
+    ├── AssessmentError    a survey or exam-score file is malformed
+    └── DiagnosisError     the gap diagnosis cannot run on the given data
+"""
+
+from __future__ import annotations
+
+
+class GraderError(Exception):
+    """Base class: a user-facing error with a one-line message."""
+
+
+class UnitError(GraderError):
+    """A quantity could not be parsed or has the wrong dimension."""
+
+
+class DatasetError(GraderError):
+    """A lab dataset is missing, malformed or inconsistent."""
+
+
+class ModelError(GraderError):
+    """The linear model cannot be evaluated for the given parameters."""
+
+
+class IdentificationError(GraderError):
+    """The data do not support an identification step."""
+
+
+class KeyFileError(GraderError):
+    """An answer-key file is malformed."""
+
+
+class RubricError(GraderError):
+    """A rubric file is malformed."""
+
+
+class SubmissionError(GraderError):
+    """A submission cannot be read."""
+
+
+class ExpressionError(GraderError):
+    """A submitted expression was rejected."""
+
+
+class SimulationError(GraderError):
+    """The rig simulator was given an unknown effect or an out-of-range value."""
+
+
+class AssessmentError(GraderError):
+    """A survey or exam-score file is malformed."""
+
+
+class DiagnosisError(GraderError):
+    """The gap diagnosis cannot run on the given data."""

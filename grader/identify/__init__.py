@@ -1,0 +1,17 @@
+"""The identification students perform, estimator-style (``fit`` returns ``self``;
+learned results end in ``_`` and are :class:`Estimate` objects with units and 95 % intervals)."""
+
+from grader.identify.critical import coefficient_match, match_sampled_poles
+from grader.identify.estimate import Estimate, propagate
+from grader.identify.flow import FlowGainFit
+from grader.identify.friction import FrictionFit
+from grader.identify.oscillation import OscillationFit
+from grader.identify.pipeline import Identification, command_start, identify
+from grader.identify.pot import PotCalibration
+from grader.identify.predict import NO_OVERSHOOT, gain_for_overshoot, gain_no_overshoot, overshoot, predictions
+
+__all__ = [
+    "NO_OVERSHOOT", "Estimate", "FlowGainFit", "FrictionFit", "Identification", "OscillationFit", "PotCalibration",
+    "coefficient_match", "command_start", "gain_for_overshoot", "gain_no_overshoot", "identify", "match_sampled_poles",
+    "overshoot", "predictions", "propagate",
+]

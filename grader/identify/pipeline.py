@@ -1,0 +1,107 @@
+"""The students' identification procedure on one lab dataset, done right.
+
+:func:`identify` turns a :class:`~grader.datasets.Dataset` into Estimates of Kpot, Kq,
+leakage, B, Fc, ω and Kp at the limit of stability, β/Vt and Kce (the students'
+coefficient matching), plus the refined model :class:`RigParams` whose sampled loop
+reproduces the measured oscillation. :func:`predict` derives the gains and errors the
+lab asks students to predict, with intervals propagated from the measurements.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from grader.datasets import Dataset, Run
+from grader.errors import IdentificationError
+from grader.identify.critical import coefficient_match, match_sampled_poles
+from grader.identify.estimate import Estimate, propagate
+from grader.identify.flow import FlowGainFit
+from grader.identify.friction import FrictionFit
+from grader.identify.oscillation import OscillationFit
+from grader.identify.pot import PotCalibration
+from grader.model.linear import plant_coeffs
+from grader.model.params import RigParams
+
+
+@dataclass(frozen=True)
+class Identification:
+    """Identified values (``estimates``) and the refined linear model (``params``)."""
+
+    estimates: Mapping[str, Estimate]
+    params: RigParams
+    students_params: RigParams
+    kp_run: float
+    dataset: Dataset
+
+
+def command_start(run: Run) -> float:
+    """Time [s] at which the command first changes (the step or ramp starts)."""
+    moved = np.flatnonzero(np.abs(run.r - run.r[0]) > 1e-12)
+    return float(run.t[moved[0]]) if moved.size else float(run.t[0])
+
+
+def _require(dataset: Dataset, what: str) -> None:
+    if getattr(dataset, what) is None:
+        raise IdentificationError(f"{dataset.root.name}: the manifest names no {what} file, needed to identify the model")
+
+
+def _instability_run(dataset: Dataset) -> Run:
+    runs = dataset.runs_of("instability")
+    if not runs:
+        raise IdentificationError(f"{dataset.root.name}: no run of kind 'instability'; β/Vt and Kce need one")
+    return runs[0]
+
+
+def identify(dataset: Dataset) -> Identification:
+    """Run the identification procedure on ``dataset``."""
+    for what in ("calibration", "flow_test", "friction"):
+        _require(dataset, what)
+    g = dataset.given
+    pot = PotCalibration().fit(dataset.calibration["position"], dataset.calibration["voltage"])
+    flow = FlowGainFit(Kamp=g["Kamp"]).fit(dataset.flow_test["input"], dataset.flow_test["flow"])
+    fric = FrictionFit().fit(dataset.friction["speed"], dataset.friction["force"])
+    run = _instability_run(dataset)
+    osc = OscillationFit().fit(run.t, run.y, start=command_start(run))
+    kp = run.controller.Kp
+    volts = dataset.manifest.feedback == "volts"
+    B_model = 0.0 if fric.B_is_zero_ else fric.B_.value
+    x = {"omega": osc.omega_.value, "Kq": flow.Kq_.value, "Kpot": pot.Kpot_.value}
+    se = {"omega": osc.omega_.se, "Kq": flow.Kq_.se, "Kpot": pot.Kpot_.se if volts else 0.0}
+
+    def match(v: Mapping[str, float]) -> tuple[float, ...]:
+        k_fb = v["Kpot"] if volts else 1.0
+        bv, kce = coefficient_match(omega=v["omega"], kp_crit=kp, A=g["A"], M=g["M"], Kamp=g["Kamp"], Kq=v["Kq"],
+                                    k_fb=k_fb, B=B_model)
+        p = RigParams(A=g["A"], M=g["M"], Kamp=g["Kamp"], Kq=v["Kq"], Kpot=v["Kpot"], beta_over_Vt=bv, Kce=kce, B=B_model)
+        a2, a1, b0 = plant_coeffs(p)
+        return bv, kce, a2, a1, g["Kamp"] * k_fb * b0
+
+    (bv, kce, a2, a1, a0k), ses = propagate(match, x, se)
+    inputs = {"omega_crit [rad/s]": x["omega"], "Kp_crit": kp, "Kq [in^3/s/mA]": x["Kq"], "Kpot [V/in]": x["Kpot"],
+              "B [lbf*s/in]": B_model, "A [in^2]": g["A"], "M [lbf*s^2/in]": g["M"], "Kamp [mA/V]": g["Kamp"]}
+    matching = "coefficient matching at the limit of stability"
+    students = RigParams(A=g["A"], M=g["M"], Kamp=g["Kamp"], Kq=x["Kq"], Kpot=x["Kpot"], beta_over_Vt=bv, Kce=kce,
+                         B=B_model, sample_time=g["sample_time"], feedback=dataset.manifest.feedback,
+                         supply_pressure=g["supply_pressure"], i_max=g["i_max"])
+    model = match_sampled_poles(students, kp=kp, sigma=osc.sigma_.value, omega=osc.omega_.value)
+    est = {
+        "Kpot": pot.Kpot_,
+        "Kq": flow.Kq_,
+        "leakage": flow.leakage_,
+        "B": fric.B_,
+        "Fc": fric.Fc_,
+        "omega_crit": osc.omega_,
+        "growth_rate": osc.sigma_,
+        "Kp_crit": Estimate(kp, "dimensionless" if volts else "V/in", 0.0, "gain of the instability run (manifest)",
+                            {"run": run.name}),
+        "beta_over_Vt": Estimate(bv, "psi/in**3", ses[0], f"{matching} (ζ = 0)", inputs),
+        "Kce": Estimate(kce, "in**3/s/psi", ses[1], f"{matching} (ζ = 0)", inputs),
+        "char_poly_a2": Estimate(a2, "1/s", ses[2], f"s² coefficient, B/M + 4β/Vt·Kce, after {matching}", inputs),
+        "char_poly_a1": Estimate(a1, "1/s**2", ses[3], f"s coefficient, 4β/Vt·(A² + B·Kce)/M, after {matching}", inputs),
+        "char_poly_a0_per_Kp": Estimate(a0k, "1/s**3" if volts else "in/V/s**3", ses[4],
+                                        f"constant term per unit Kp, Kamp·{'Kpot·' if volts else ''}4β/Vt·Kq·A/M", inputs),
+    }
+    return Identification(estimates=est, params=model, students_params=students, kp_run=kp, dataset=dataset)

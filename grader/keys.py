@@ -1,0 +1,137 @@
+"""Answer keys: every quantity the grader checks, computed from one lab dataset.
+
+A key is JSON (schema :class:`Key`): ``quantities`` maps canonical item names to
+``{"value", "unit", "interval", "method", "inputs"}``; ``model`` holds the identified
+linear model (quantity strings) used for simulation and design checks; ``inputs_sha256``
+and ``generated_by`` record what produced it. Same inputs ⇒ byte-identical file.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from grader import __version__
+from grader.datasets import Dataset, load
+from grader.errors import KeyFileError
+from grader.identify import Estimate, Identification, identify, predictions
+from grader.model.linear import closed_loop_poles
+from grader.model.params import RigParams
+
+SCHEMA = "grader.key/1"
+#: RigParams field -> unit written in the key's ``model`` block
+MODEL_UNITS: dict[str, str] = {
+    "A": "in**2", "M": "lbf*s**2/in", "Kamp": "mA/V", "Kq": "in**3/s/mA", "Kpot": "V/in",
+    "beta_over_Vt": "psi/in**3", "Kce": "in**3/s/psi", "B": "lbf*s/in", "sample_time": "s",
+    "supply_pressure": "psi", "i_max": "mA",
+}
+
+
+class KeyEntry(BaseModel):
+    """One key quantity. ``interval`` is the 95 % interval (null for structured values)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    value: Any
+    unit: str
+    interval: tuple[float, float] | None
+    method: str
+    inputs: dict[str, Any]
+
+
+class Key(BaseModel):
+    """An answer key file."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    schema_: str = SCHEMA
+    station: str
+    dataset: str
+    feedback: str
+    generated_by: dict[str, str]
+    inputs_sha256: str
+    model: dict[str, float]
+    quantities: dict[str, KeyEntry]
+
+    def params(self) -> RigParams:
+        """The identified linear model."""
+        return RigParams(feedback=self.feedback, **self.model)  # type: ignore[arg-type]
+
+    def value(self, item: str) -> Any:
+        return self.quantities[item].value
+
+
+def _r(x: float) -> float:
+    return float(f"{x:.10g}")
+
+
+def _entry(e: Estimate) -> KeyEntry:
+    inputs = {k: (_r(v) if isinstance(v, float) else v) for k, v in e.inputs.items()}
+    lo, hi = e.interval
+    return KeyEntry(value=_r(e.value), unit=e.unit, interval=(_r(lo), _r(hi)), method=e.method, inputs=inputs)
+
+
+def _poles_entry(ident: Identification) -> KeyEntry:
+    runs = []
+    for run in ident.dataset.runs:
+        poles = closed_loop_poles(ident.students_params, run.controller)
+        runs.append({"run": run.name, "Kp": run.controller.Kp, "Ki": run.controller.Ki, "Kd": run.controller.Kd,
+                     "poles": [[_r(p.real), _r(p.imag)] for p in poles]})
+    return KeyEntry(value=runs, unit="1/s", interval=None, inputs={},
+                    method="roots of the continuous characteristic polynomial of the students' identified model, per run")
+
+
+def build_key(dataset: Dataset) -> Key:
+    """Identify the model from ``dataset`` and assemble its key."""
+    ident = identify(dataset)
+    quantities = {name: _entry(e) for name, e in {**ident.estimates, **predictions(ident)}.items()}
+    quantities["closed_loop_poles"] = _poles_entry(ident)
+    model = {name: _r(getattr(ident.params, name)) for name in MODEL_UNITS}
+    return Key(
+        station=dataset.manifest.station, dataset=dataset.root.name, feedback=dataset.manifest.feedback,
+        generated_by={"package": "grader", "version": __version__}, inputs_sha256=dataset.inputs_sha256,
+        model=model, quantities=dict(sorted(quantities.items())),
+    )
+
+
+def key_json(key: Key) -> str:
+    """Canonical JSON text of ``key`` (sorted keys, two-space indent, trailing newline)."""
+    data = key.model_dump(mode="json", by_alias=False)
+    data["schema"] = data.pop("schema_")
+    data["model_units"] = MODEL_UNITS
+    return json.dumps(data, indent=2, sort_keys=True, ensure_ascii=False) + "\n"
+
+
+def write_key(key: Key, path: str | Path) -> Path:
+    """Write ``key`` atomically."""
+    path = Path(path)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(key_json(key), encoding="utf-8")
+    tmp.replace(path)
+    return path
+
+
+def read_key(path: str | Path) -> Key:
+    """Read and validate a key file."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise KeyFileError(f"{path}: key file not found") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise KeyFileError(f"{path.name}: not valid JSON ({exc})") from None
+    if not isinstance(data, dict) or data.get("schema") != SCHEMA:
+        raise KeyFileError(f"{path.name}: not a grader key (schema must be {SCHEMA!r})")
+    data["schema_"] = data.pop("schema")
+    data.pop("model_units", None)
+    try:
+        return Key.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        raise KeyFileError(f"{path.name}: field {'.'.join(map(str, err['loc']))}: {err['msg']}") from None
+
+
+def key_for_dataset(root: str | Path) -> Key:
+    """Load the dataset in ``root`` and build its key."""
+    return build_key(load(root))
