@@ -118,7 +118,7 @@ def upper_lower_index(item: np.ndarray, rest: np.ndarray, item_max: float, fract
     (mean item score of the top 27 % − that of the bottom 27 %) / item max.
     Students are ranked by rest score; ties at a cut are broken by file order.
     """
-    size = int(round(fraction * len(item)))
+    size = round(fraction * len(item))
     if size < 1 or 2 * size > len(item):
         return None
     order = np.argsort(np.asarray(rest), kind="stable")

@@ -119,10 +119,11 @@ class SurveyMapping(_Frozen):
         for item in self.overall:
             header = f"overall.{item.id}" if form == "template" else getattr(item.columns, form)
             out.append(_field("overall", header, f"Overall / {item.label}", form, statement=item.id))
-        for kind, spec, template in (
+        singles: tuple[tuple[Kind, Columns | None, str], ...] = (
             ("hours", self.hours, "hours_per_week"),
             ("most_useful", self.most_useful, "most_useful"),
-        ):
+        )
+        for kind, spec, template in singles:
             if spec is not None:
                 header = template if form == "template" else getattr(spec, form)
                 out.append(_field(kind, header, kind.replace("_", " "), form))

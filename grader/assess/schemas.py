@@ -139,6 +139,7 @@ class Mention(_Model):
 class Quote(_Model):
     labs: list[str]
     text: str
+    count: int
 
 
 class MostUseful(_Model):

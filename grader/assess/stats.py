@@ -181,5 +181,5 @@ def pairwise_wilcoxon(columns: dict[str, np.ndarray]) -> list[PairResult]:
     adjusted = holm([r[4] for r in raw])
     return [
         PairResult(a=a, b=b, n=n, statistic=s, p=p, p_holm=ph, mean_diff=d)
-        for (a, b, n, s, p, d), ph in zip(raw, adjusted)
+        for (a, b, n, s, p, d), ph in zip(raw, adjusted, strict=True)
     ]

@@ -13,7 +13,7 @@ import difflib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TypeVar
+from typing import Any, TypeVar
 
 from grader.assess.likert import CellValueError, normalize, parse_hours, parse_yes_no
 from grader.assess.mapping import FORM_NAMES, ColumnSpec, Form, SurveyMapping
@@ -66,7 +66,7 @@ def read_survey(path: Path, mapping: SurveyMapping) -> SurveyData:
     form = detect_form(table)
     rows, notes = _data_rows(table, form)
     fields = mapping.fields(form)
-    index = _resolve_columns(rows, fields, form)
+    index = _resolve_columns(rows, fields, form, mapping)
     if form == "template":
         _reject_unknown_template_columns(rows, fields)
     return _parse(rows, form, fields, index, mapping, notes)
@@ -98,7 +98,9 @@ def _drop_qualtrics_previews(rows: _Rows) -> tuple[_Rows, int]:
     return _Rows(rows.table, rows.headers, kept), len(rows.records) - len(kept)
 
 
-def _resolve_columns(rows: _Rows, fields: Sequence[ColumnSpec], form: Form) -> dict[str, int]:
+def _resolve_columns(
+    rows: _Rows, fields: Sequence[ColumnSpec], form: Form, mapping: SurveyMapping
+) -> dict[str, int]:
     """Map each field's header to its column index, or raise naming what is wrong."""
     positions: dict[str, list[int]] = {}
     for i, header in enumerate(rows.headers):
@@ -112,7 +114,7 @@ def _resolve_columns(rows: _Rows, fields: Sequence[ColumnSpec], form: Form) -> d
             f'or a Google Forms export starting with "Timestamp")'
         )
     if missing:
-        raise AssessmentError(_missing_message(name, missing, rows.headers, form))
+        raise AssessmentError(_missing_message(name, missing, fields, rows.headers, form, mapping))
     for f in fields:
         found = positions[normalize(f.header)]
         if len(found) > 1:
@@ -121,7 +123,24 @@ def _resolve_columns(rows: _Rows, fields: Sequence[ColumnSpec], form: Form) -> d
     return {f.header: positions[normalize(f.header)][0] for f in fields}
 
 
-def _missing_message(name: str, missing: list[ColumnSpec], headers: Sequence[str], form: Form) -> str:
+def _missing_message(
+    name: str,
+    missing: Sequence[ColumnSpec],
+    fields: Sequence[ColumnSpec],
+    headers: Sequence[str],
+    form: Form,
+    mapping: SurveyMapping,
+) -> str:
+    """Name the whole lab if all its columns are gone, else the first missing column."""
+    for lab in mapping.labs:
+        of_lab = [f for f in fields if f.lab == lab.id]
+        if of_lab and all(f in missing for f in of_lab):
+            extra = len(missing) - len(of_lab)
+            more = f"; {extra} other column(s) are missing too" if extra else ""
+            return (
+                f"{name}: the {lab.name} lab is missing: none of its {len(of_lab)} columns "
+                f'(e.g. "{of_lab[0].header}") is in this {FORM_NAMES[form]}{more}'
+            )
     first = missing[0]
     text = f'{name}: column "{first.header}" ({first.description}) is missing from this {FORM_NAMES[form]}'
     close = difflib.get_close_matches(first.header, [h for h in headers if h.strip()], n=1, cutoff=0.8)
@@ -166,7 +185,9 @@ def _parse(
     mapping: SurveyMapping,
     notes: list[str],
 ) -> SurveyData:
-    parsed = {f.header: _column(rows, index[f.header], f, _parser(f, mapping)) for f in fields}
+    parsed: dict[str, tuple[Any, ...]] = {
+        f.header: _column(rows, index[f.header], f, _parser(f, mapping)) for f in fields
+    }
     by_kind = {kind: [f for f in fields if f.kind == kind] for kind in ("did_lab", "rating", "overall")}
     did = {f.lab: parsed[f.header] for f in by_kind["did_lab"] if f.lab}
     ratings, discarded = _apply_did_lab(
@@ -192,14 +213,15 @@ def _parse(
     )
 
 
-def _parser(spec: ColumnSpec, mapping: SurveyMapping) -> Callable[[str], object]:
-    return {
+def _parser(spec: ColumnSpec, mapping: SurveyMapping) -> Callable[[str], Any]:
+    parsers: dict[str, Callable[[str], Any]] = {
         "rating": mapping.scale.parse,
         "overall": mapping.scale.parse,
         "did_lab": parse_yes_no,
         "hours": parse_hours,
         "most_useful": str,
-    }[spec.kind]
+    }
+    return parsers[spec.kind]
 
 
 def _single(fields: Sequence[ColumnSpec], parsed: Mapping[str, tuple], kind: str) -> tuple | None:
@@ -219,6 +241,6 @@ def _apply_did_lab(
         if flags is None:
             out[(lab, statement)] = values
             continue
-        discarded[lab] += sum(v is not None and f is False for v, f in zip(values, flags))
-        out[(lab, statement)] = tuple(None if f is False else v for v, f in zip(values, flags))
+        discarded[lab] += sum(v is not None and f is False for v, f in zip(values, flags, strict=True))
+        out[(lab, statement)] = tuple(None if f is False else v for v, f in zip(values, flags, strict=True))
     return out, discarded

@@ -13,6 +13,7 @@ import io
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from xml.etree import ElementTree
 
 from grader.errors import AssessmentError
 
@@ -43,12 +44,12 @@ def read_table(path: Path) -> Table:
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix in CSV_SUFFIXES:
-        rows = _read_csv(path)
+        raw = _read_csv(path)
     elif suffix in XLSX_SUFFIXES:
-        rows = _read_xlsx(path)
+        raw = _read_xlsx(path)
     else:
         raise AssessmentError(f"{path.name}: unsupported file type {suffix or '(none)'}; use .csv or .xlsx")
-    rows = _trim(rows)
+    rows = _trim(raw)
     if not rows:
         raise AssessmentError(f"{path.name}: the file is empty")
     return Table(name=path.name, rows=rows)
@@ -71,16 +72,18 @@ def _read_csv(path: Path) -> list[list[str]]:
 
 def _read_xlsx(path: Path) -> list[list[str]]:
     from openpyxl import load_workbook
+    from openpyxl.utils.exceptions import InvalidFileException
 
     try:
         workbook = load_workbook(path, read_only=True, data_only=True)
-    except (OSError, zipfile.BadZipFile, KeyError, ValueError) as exc:
+        try:
+            sheet = workbook.worksheets[0]
+            return [[_cell_text(value) for value in row] for row in sheet.iter_rows(values_only=True)]
+        finally:
+            workbook.close()
+    except (OSError, zipfile.BadZipFile, InvalidFileException, ElementTree.ParseError,
+            KeyError, IndexError, TypeError, ValueError) as exc:
         raise AssessmentError(f"{path.name}: not a readable XLSX workbook ({exc})") from exc
-    try:
-        sheet = workbook.worksheets[0]
-        return [[_cell_text(value) for value in row] for row in sheet.iter_rows(values_only=True)]
-    finally:
-        workbook.close()
 
 
 def _cell_text(value: object) -> str:

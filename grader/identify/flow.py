@@ -11,25 +11,29 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 
 from grader.errors import IdentificationError
 from grader.identify.estimate import Estimate
 
 
-def _linear_region(i: NDArray[np.float64], q: NDArray[np.float64], null: int) -> NDArray[np.bool_]:
-    """Points on the line: start from the central half and grow each side outward
-    until a point leaves the line (saturation begins there)."""
-    d = i - i[null]
-    signed = np.sign(d) * (q - q[null])
+def _fit_v(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float64]) -> OptimizeResult:
+    """Least squares for ``q = |Kq·(i − i0)| + leakage``; x = (Kq, i0, leakage)."""
+    return least_squares(lambda x: np.abs(x[0] * (i - x[1])) + x[2] - q, x0, method="lm")
+
+
+def _linear_region(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Points on the V: start from the central half and grow each side outward until a
+    point leaves the fitted V by more than 4 σ or 1 % (saturation begins there)."""
+    d = i - x0[1]
     keep = np.abs(d) <= 0.5 * np.max(np.abs(d))
     for side in (1.0, -1.0):
-        for k in np.flatnonzero((np.sign(d) == side) & ~keep)[np.argsort(np.abs(d[(np.sign(d) == side) & ~keep]))]:
-            slope, icpt = np.polyfit(i[keep], signed[keep], 1)
-            resid = signed[keep] - (slope * i[keep] + icpt)
-            sd = float(np.std(resid, ddof=2)) if keep.sum() > 2 else 0.0
-            pred = slope * i[k] + icpt
-            if abs(signed[k] - pred) > max(4.0 * sd, 0.03 * abs(pred)):
+        outer = np.flatnonzero((np.sign(d) == side) & ~keep)
+        for k in outer[np.argsort(np.abs(d[outer]))]:
+            fit = _fit_v(i[keep], q[keep], x0)
+            sd = float(np.std(fit.fun, ddof=3)) if keep.sum() > 3 else 0.0
+            pred = abs(fit.x[0] * (i[k] - fit.x[1])) + fit.x[2]
+            if abs(q[k] - pred) > max(4.0 * sd, 0.01 * pred):
                 break
             keep[k] = True
     return keep
@@ -53,13 +57,13 @@ class FlowGainFit:
             raise IdentificationError("flow test: the flow meter reads magnitudes; negative readings found")
         i = self.Kamp * v
         null = int(np.argmin(q))
-        mask = _linear_region(i, q, null)
-        side = np.sign(i[mask] - i[null])
+        side = np.sign(i - i[null])
         if not (np.any(side > 0) and np.any(side < 0)):
             raise IdentificationError("flow test: readings must span both sides of the valve null")
-        slope0 = np.polyfit(i[mask], np.sign(i[mask] - i[null]) * (q[mask] - q[null]), 1)[0]
+        slope0 = np.polyfit(i, side * (q - q[null]), 1)[0]
         x0 = np.array([abs(slope0), i[null], q[null]])
-        res = least_squares(lambda x: np.abs(x[0] * (i[mask] - x[1])) + x[2] - q[mask], x0, method="lm")
+        mask = _linear_region(i, q, x0)
+        res = _fit_v(i[mask], q[mask], x0)
         dof = int(mask.sum()) - 3
         s2 = float(res.fun @ res.fun / max(dof, 1))
         cov = s2 * np.linalg.pinv(res.jac.T @ res.jac)

@@ -1,0 +1,129 @@
+"""XLSX reports (openpyxl): a sheet per section, typed cells, charts embedded as images."""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+
+from openpyxl import Workbook
+from openpyxl.drawing.image import Image
+from openpyxl.styles import Alignment, Font
+from openpyxl.worksheet.worksheet import Worksheet
+
+from grader.assess.exam_report import informative_heading
+from grader.assess.schemas import ExamReport, SurveyReport
+from grader.assess.views import (
+    View,
+    exam_views,
+    survey_comparisons,
+    survey_hours,
+    survey_most_useful,
+    survey_summary,
+)
+
+_FORMATS = {"int": "0", "pct": "0.0", "num": "0.000", "p": "0.0000", "text": "@"}
+_BOLD = Font(bold=True)
+_TITLE = Font(bold=True, size=12)
+_WIDE_TEXT = 90
+_HEADER_WIDTH = 16
+
+
+def _write_views(sheet: Worksheet, views: Sequence[View], start: int = 1) -> int:
+    """Write the views one under another; return the next free row."""
+    row = start
+    for view in views:
+        sheet.cell(row=row, column=1, value=view.title).font = _TITLE
+        row += 1
+        for col, header in enumerate(view.headers, start=1):
+            cell = sheet.cell(row=row, column=col, value=header)
+            cell.font, cell.alignment = _BOLD, Alignment(wrap_text=True, vertical="bottom")
+        row += 1
+        for values in view.rows:
+            for col, (value, kind) in enumerate(zip(values, view.kinds, strict=True), start=1):
+                cell = sheet.cell(row=row, column=col, value=value)
+                cell.number_format = _FORMATS["int" if isinstance(value, int) else kind]
+            row += 1
+        row += 1
+    return row
+
+
+def _write_paragraphs(sheet: Worksheet, title: str, lines: Iterable[str], start: int, wrap: bool = True) -> int:
+    """Write a titled list of sentences in column A (wrapped, or overflowing to the right)."""
+    sheet.cell(row=start, column=1, value=title).font = _TITLE
+    row = start + 1
+    for line in lines:
+        cell = sheet.cell(row=row, column=1, value=line)
+        cell.alignment = Alignment(wrap_text=wrap, vertical="top")
+        row += 1
+    return row + 1
+
+
+def _shown_width(value: object) -> int:
+    """Characters a cell shows: numbers as formatted (3 decimals), text as is."""
+    if isinstance(value, float):
+        return len(f"{value:.3f}")
+    return len(str(value))
+
+
+def _fit_columns(sheet: Worksheet) -> None:
+    """Width from headers (capped) and values; titles and long paragraphs overflow instead."""
+    for column in sheet.columns:
+        widths = [
+            min(_shown_width(c.value), _HEADER_WIDTH) if c.font.b else _shown_width(c.value)
+            for c in column
+            if c.value is not None and c.font.sz != _TITLE.sz
+        ]
+        longest = max((w for w in widths if w <= _WIDE_TEXT), default=8)
+        sheet.column_dimensions[column[0].column_letter].width = min(max(8, longest + 2), _WIDE_TEXT)
+
+
+def _image_sheet(workbook: Workbook, title: str, pngs: Sequence[bytes]) -> None:
+    sheet = workbook.create_sheet(title)
+    anchor_row = 1
+    for png in pngs:
+        picture = Image(io.BytesIO(png))
+        scale = min(1.0, 900 / picture.width)
+        picture.width, picture.height = picture.width * scale, picture.height * scale
+        sheet.add_image(picture, f"A{anchor_row}")
+        anchor_row += int(picture.height / 20) + 2
+
+
+def write_survey_xlsx(report: SurveyReport, images: Mapping[str, bytes], path: Path) -> None:
+    """report.xlsx: Summary first, then Comparisons, Hours, Most useful, Chart, Notes."""
+    workbook = Workbook()
+    summary = workbook.active
+    summary.title = "Summary"
+    conclusions = [c.conclusion for c in report.comparisons]
+    row = _write_paragraphs(summary, "Which lab was rated highest?", conclusions, 1, wrap=False)
+    _write_views(summary, survey_summary(report), row)
+    sheets = [("Comparisons", survey_comparisons(report)), ("Hours", survey_hours(report)),
+              ("Most useful", survey_most_useful(report))]
+    for title, views in sheets:
+        if views:
+            _write_views(workbook.create_sheet(title), views)
+    for sheet in workbook.worksheets:
+        _fit_columns(sheet)
+    _image_sheet(workbook, "Chart", [images[k] for k in ("likert", "hours") if k in images])
+    notes = workbook.create_sheet("Notes")
+    row = _write_paragraphs(notes, "What these data can and cannot show", report.limitations, 1)
+    _write_paragraphs(notes, "Data notes", report.notes, row)
+    notes.column_dimensions["A"].width = 120
+    workbook.save(path)
+
+
+def write_exam_xlsx(report: ExamReport, images: Mapping[str, bytes], path: Path) -> None:
+    """report.xlsx for the exam question: Summary (figures), Interpretation, Chart."""
+    workbook = Workbook()
+    summary = workbook.active
+    summary.title = "Summary"
+    _write_views(summary, exam_views(report))
+    _fit_columns(summary)
+    text = workbook.create_sheet("Interpretation")
+    row = _write_paragraphs(text, "What the comparison shows", [p.verdict for p in report.problems], 1)
+    row = _write_paragraphs(text, informative_heading(report), report.why_uninformative, row)
+    row = _write_paragraphs(text, "How big the next study has to be", report.next_study, row)
+    _write_paragraphs(text, "Notes", report.notes, row)
+    text.column_dimensions["A"].width = 140
+    _image_sheet(workbook, "Chart", [images["exam"]])
+    workbook.save(path)

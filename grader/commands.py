@@ -1,0 +1,50 @@
+"""Core verbs: ``grader key`` (answer key from a dataset) and ``grader demo``."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+from grader.keys import Key, key_for_dataset, write_key
+from grader.units import fmt
+
+
+def key_table(key: Key, *, title: str) -> Table:
+    """A readable table of a key's scalar quantities (course units)."""
+    table = Table(title=title)
+    for col in ("item", "value", "95 % interval"):
+        table.add_column(col, no_wrap=True)
+    for name, e in key.quantities.items():
+        if e.interval is None:
+            table.add_row(name, f"per run ({len(e.value)} runs)", "see key file")
+            continue
+        table.add_row(name, fmt(e.value, e.unit), f"{e.interval[0]:.4g} … {e.interval[1]:.4g}")
+    return table
+
+
+def _key(args: argparse.Namespace) -> int:
+    key = key_for_dataset(args.dataset)
+    out = write_key(key, args.output)
+    console = Console()
+    console.print(key_table(key, title=f"Answer key for {key.station} ({Path(args.dataset).name})"))
+    console.print(f"wrote {out}  (inputs sha256 {key.inputs_sha256[:12]}…, grader {key.generated_by['version']})")
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from grader.demo import run_demo
+
+    return run_demo(Path(args.out))
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("key", help="build the answer key from a lab dataset folder")
+    p.add_argument("dataset", help="lab dataset folder (manifest.json + CSV files)")
+    p.add_argument("-o", "--output", default="key.json", help="key file to write (default: key.json)")
+    p.set_defaults(handler=_key)
+    p = sub.add_parser("demo", help="run the main job end to end on the embedded default station")
+    p.add_argument("--out", default="grader-demo", help="folder for the demo's outputs (default: grader-demo)")
+    p.set_defaults(handler=_demo)

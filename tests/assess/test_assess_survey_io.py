@@ -1,0 +1,205 @@
+"""Survey readers: the three forms agree, and every bad file gets a clear error."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import pytest
+from openpyxl import Workbook
+
+from grader.assess import build_survey_report, load_mapping, read_survey
+from grader.assess.survey_io import detect_form
+from grader.assess.tables import read_table
+from grader.errors import AssessmentError
+
+FIXTURES = Path(__file__).resolve().parents[2] / "submissions_fixtures" / "assessment"
+MAPPING = load_mapping()
+FORMS = {
+    "survey_template.csv": "template",
+    "survey_template.xlsx": "template",
+    "survey_qualtrics.csv": "qualtrics",
+    "survey_google_forms.csv": "google",
+}
+
+
+def _rows(name: str) -> list[list[str]]:
+    with (FIXTURES / name).open(encoding="utf-8", newline="") as handle:
+        return list(csv.reader(handle))
+
+
+def _write(path: Path, rows: list[list[str]]) -> Path:
+    with path.open("w", encoding="utf-8", newline="") as handle:
+        csv.writer(handle).writerows(rows)
+    return path
+
+
+def _error(path: Path, mapping=MAPPING) -> str:
+    with pytest.raises(AssessmentError) as info:
+        read_survey(path, mapping)
+    message = str(info.value)
+    assert "\n" not in message
+    return message
+
+
+@pytest.mark.parametrize(("name", "form"), FORMS.items())
+def test_forms_are_recognised(name: str, form: str) -> None:
+    assert detect_form(read_table(FIXTURES / name)) == form
+
+
+def test_all_forms_give_identical_figures() -> None:
+    dumps = {
+        name: build_survey_report(read_survey(FIXTURES / name, MAPPING), MAPPING).model_dump(
+            mode="json", exclude={"form", "notes"}
+        )
+        for name in FORMS
+    }
+    reference = dumps["survey_template.csv"]
+    assert reference["respondents"] == 65
+    for name, dump in dumps.items():
+        assert dump == reference, name
+
+
+def test_missing_data_are_counted_not_neutral() -> None:
+    data = read_survey(FIXTURES / "survey_template.csv", MAPPING)
+    report = build_survey_report(data, MAPPING)
+    for item in report.items:
+        assert item.n + item.n_missing + item.n_not_done == 65
+        assert sum(item.counts) == item.n
+    two_tank = next(lab for lab in report.labs if lab.lab == "two_tank")
+    assert (two_tank.did_no, two_tank.ratings_discarded) == (4, 5)
+    assert any("5 Two-Tank ratings were left out" in note for note in report.notes)
+
+
+def test_qualtrics_previews_are_left_out() -> None:
+    data = read_survey(FIXTURES / "survey_qualtrics.csv", MAPPING)
+    assert data.respondents == 65
+    assert any("preview" in note for note in data.notes)
+
+
+@pytest.mark.parametrize(
+    ("name", "expected"),
+    [
+        ("survey_bad_header.csv", ['"hydraulic_positioner.simulink"', "Hydraulic Positioner", "misspelt",
+                                   '"hydraulic_positoner.simulink"']),
+        ("survey_bad_value_7.csv", ["row 13", 'column V "hydraulic_pid.models"', "Hydraulic PID",
+                                    '"7" is outside the scale 1-5']),
+        ("survey_missing_lab.csv", ["the Two-Tank lab is missing", "none of its 6 columns", '"two_tank.did_lab"']),
+        ("survey_empty.csv", ["survey_empty.csv", "the file is empty"]),
+    ],
+)
+def test_shipped_bad_files(name: str, expected: list[str]) -> None:
+    message = _error(FIXTURES / name)
+    for part in expected:
+        assert part in message
+
+
+def test_google_error_names_spreadsheet_row_and_header(tmp_path: Path) -> None:
+    rows = _rows("survey_google_forms.csv")
+    col = rows[0].index("The Hydraulic PID Controller Laboratory: [was a good use of my time.]")
+    rows[9][col] = "7"
+    message = _error(_write(tmp_path / "google.csv", rows))
+    assert "row 10," in message and "[was a good use of my time.]" in message and "Hydraulic PID" in message
+
+
+def test_qualtrics_error_counts_its_three_header_rows(tmp_path: Path) -> None:
+    rows = _rows("survey_qualtrics.csv")
+    rows[5][rows[0].index("Q6_3")] = "Sometimes"
+    message = _error(_write(tmp_path / "qualtrics.csv", rows))
+    assert 'row 6, column' in message and '"Q6_3"' in message and '"Sometimes" is not a rating' in message
+
+
+def test_xlsx_error_names_row_and_column(tmp_path: Path) -> None:
+    rows = _rows("survey_template.csv")
+    workbook = Workbook()
+    for row in rows:
+        workbook.active.append([int(c) if c.isdigit() else (c or None) for c in row])
+    workbook.active.cell(row=20, column=3, value=9)
+    workbook.save(tmp_path / "responses.xlsx")
+    message = _error(tmp_path / "responses.xlsx")
+    assert message.startswith("responses.xlsx, row 20, column C") and '"9" is outside the scale' in message
+
+
+def test_bad_did_lab_flag(tmp_path: Path) -> None:
+    rows = _rows("survey_template.csv")
+    rows[3][rows[0].index("motomatic.did_lab")] = "Perhaps"
+    message = _error(_write(tmp_path / "t.csv", rows))
+    assert "row 4" in message and "Motomatic / did this lab" in message and "not Yes or No" in message
+
+
+def test_unknown_template_column_is_a_wrong_header(tmp_path: Path) -> None:
+    rows = [[*row, "x"] for row in _rows("survey_template.csv")]
+    rows[0][-1] = "comments"
+    message = _error(_write(tmp_path / "t.csv", rows))
+    assert 'wrong header: column AD "comments" is not a template column' in message
+
+
+def test_header_of_no_known_form(tmp_path: Path) -> None:
+    message = _error(_write(tmp_path / "odd.csv", [["name", "score"], ["a", "1"]]))
+    assert "matches none of the survey forms" in message
+
+
+def test_header_without_responses(tmp_path: Path) -> None:
+    message = _error(_write(tmp_path / "t.csv", _rows("survey_template.csv")[:1]))
+    assert "has a header but no responses" in message
+
+
+def test_duplicated_column(tmp_path: Path) -> None:
+    rows = [[*row, row[2]] for row in _rows("survey_template.csv")]
+    assert "appears more than once" in _error(_write(tmp_path / "t.csv", rows))
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "expected"),
+    [("r.json", b"{}", "unsupported file type .json"), ("r.xlsx", b"not a zip", "not a readable XLSX")],
+)
+def test_unreadable_files(tmp_path: Path, name: str, content: bytes, expected: str) -> None:
+    (tmp_path / name).write_bytes(content)
+    assert expected in _error(tmp_path / name)
+
+
+@pytest.mark.parametrize(
+    ("yaml_text", "expected"),
+    [
+        ("scale: [unclosed", "not valid YAML"),
+        ("scale: {labels: [a, b]}\nstatements: []\nlabs: []\n", "statements"),
+        ("scale: {labels: [a, b]}\nstatements: [{id: s, label: S, text: t}]\nlabs:\n"
+         "  - {id: a, name: A, qualtrics: {items: 'Q_{x}'}}\n  - {id: b, name: B}\n", "{statement}"),
+    ],
+)
+def test_bad_mapping_files(tmp_path: Path, yaml_text: str, expected: str) -> None:
+    path = tmp_path / "map.yaml"
+    path.write_text(yaml_text, encoding="utf-8")
+    with pytest.raises(AssessmentError) as info:
+        load_mapping(path)
+    assert str(info.value).startswith("map.yaml: ") and expected in str(info.value)
+
+
+def test_mapping_without_columns_for_the_form(tmp_path: Path) -> None:
+    path = tmp_path / "map.yaml"
+    path.write_text(
+        "scale: {labels: [a, b, c]}\nstatements: [{id: s, label: S, text: t}]\n"
+        "labs: [{id: x, name: X}, {id: y, name: Y}]\nhours: null\nmost_useful: null\n",
+        encoding="utf-8",
+    )
+    message = _error(FIXTURES / "survey_qualtrics.csv", load_mapping(path))
+    assert "gives no Qualtrics export columns for the X lab" in message
+
+
+def test_column_letters() -> None:
+    from grader.assess.tables import column_letter
+
+    assert [column_letter(i) for i in (0, 25, 26, 29, 701, 702)] == ["A", "Z", "AA", "AD", "ZZ", "AAA"]
+
+
+def test_fixtures_are_reproducible(tmp_path: Path) -> None:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("make_fixtures", FIXTURES / "make_fixtures.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    module.main(tmp_path)
+    written = sorted(p.name for p in tmp_path.iterdir())
+    assert len(written) == 11
+    for name in written:
+        assert (tmp_path / name).read_bytes() == (FIXTURES / name).read_bytes(), name

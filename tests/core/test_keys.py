@@ -1,0 +1,67 @@
+"""Answer keys: complete, deterministic, provenance recorded, checked-in default up to date."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from grader.cli import main
+from grader.datasets import load
+from grader.errors import KeyFileError
+from grader.keys import build_key, key_json, read_key, write_key
+from grader.stations import reference_dir
+
+CANONICAL = ["Kpot", "Kq", "leakage", "B", "Fc", "omega_crit", "Kp_crit", "beta_over_Vt", "Kce", "Kp_no_overshoot",
+             "Kp_25_overshoot", "ramp_ess_P", "closed_loop_poles", "char_poly_a2", "char_poly_a1", "char_poly_a0_per_Kp"]
+
+
+@pytest.fixture(scope="module")
+def key_text(linear_dataset: Path) -> str:
+    return key_json(build_key(load(linear_dataset)))
+
+
+def test_key_has_every_canonical_item_with_unit_and_interval(key_text: str) -> None:
+    from grader.units import parse_unit
+
+    data = json.loads(key_text)
+    for item in CANONICAL:
+        entry = data["quantities"][item]
+        assert set(entry) == {"value", "unit", "interval", "method", "inputs"}
+        parse_unit(entry["unit"]) if entry["unit"] != "dimensionless" else None
+        if item != "closed_loop_poles":
+            lo, hi = entry["interval"]
+            assert lo <= entry["value"] <= hi
+    assert data["generated_by"]["package"] == "grader" and data["inputs_sha256"]
+
+
+def test_same_inputs_give_byte_identical_keys(linear_dataset: Path, key_text: str, tmp_path: Path) -> None:
+    assert key_json(build_key(load(linear_dataset))) == key_text
+    path = write_key(read_key(_write(tmp_path, key_text)), tmp_path / "again.json")
+    assert path.read_text() == key_text
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "key.json"
+    path.write_text(text)
+    return path
+
+
+def test_default_key_is_up_to_date() -> None:
+    root = reference_dir()
+    checked_in = (root / "keys" / "default.json").read_text()
+    assert key_json(build_key(load(root / "datasets" / "default"))) == checked_in
+
+
+def test_cli_key_writes_file_and_table(linear_dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "k.json"
+    assert main(["key", str(linear_dataset), "-o", str(out)]) == 0
+    assert "beta_over_Vt" in capsys.readouterr().out
+    assert read_key(out).quantities["Kq"].unit == "in**3/s/mA"
+
+
+@pytest.mark.parametrize("text", ["{", "[]", '{"schema": "other"}', '{"schema": "grader.key/1", "station": 3}'])
+def test_bad_key_files_raise(tmp_path: Path, text: str) -> None:
+    with pytest.raises(KeyFileError):
+        read_key(_write(tmp_path, text))

@@ -1,0 +1,63 @@
+"""The single registry: parsing with units, guards against hostile strings."""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from grader.errors import UnitError
+from grader.units import parse_quantity, parse_unit, quantity_to_float, ureg
+
+
+@pytest.mark.parametrize(
+    ("text", "unit", "expected"),
+    [
+        ("0.0385 in^3/s/mA", "in**3/s/mA", 0.0385),
+        ("2.2e-5 ft**3/(s*mA)", "in**3/s/mA", 2.2e-5 * 1728),
+        ("0.5 gpm", "in**3/s", 0.5 * 231 / 60),
+        ("29 lbf", "lbf", 29.0),
+        ("6.895 kPa", "psi", 1.0000),
+        ("1 ms", "s", 1e-3),
+        (12, "V/in", 12.0),
+    ],
+)
+def test_parse_and_convert(text: str | int, unit: str, expected: float) -> None:
+    assert quantity_to_float(text, unit) == pytest.approx(expected, rel=1e-3)
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        ("", "empty"),
+        ("x" * 500, "longer than"),
+        ("__import__('os')", "not allowed"),
+        ("2 m**99999999", "too large"),
+        ("1" * 60 + " m", "too large"),
+        ("3 blargs", "cannot parse"),
+        ("nan m", "finite"),
+    ],
+)
+def test_hostile_or_bad_quantities_raise_unit_error(text: str, words: str) -> None:
+    with pytest.raises(UnitError, match=words):
+        parse_quantity(text, where="answers.Kq")
+
+
+def test_wrong_dimension_is_named() -> None:
+    with pytest.raises(UnitError, match=r"answers.Kq: .*dimension"):
+        quantity_to_float("3 psi", "in**3/s/mA", where="answers.Kq")
+
+
+def test_parse_unit_rejects_quantities() -> None:
+    assert parse_unit("L/min") == ureg.Unit("L/min")
+    with pytest.raises(UnitError, match="quantity, not a unit"):
+        parse_unit("3 m")
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.text(max_size=60))
+def test_any_text_either_parses_or_raises_unit_error(text: str) -> None:
+    try:
+        parse_quantity(text)
+    except UnitError:
+        pass

@@ -1,0 +1,141 @@
+"""The dataset format: round trip, unit conversion, and one clear error per kind of bad input."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from grader.cli import main
+from grader.datasets import load
+from grader.errors import DatasetError
+
+
+@pytest.fixture
+def ds(tmp_path: Path, linear_dataset: Path) -> Path:
+    out = tmp_path / "ds"
+    shutil.copytree(linear_dataset, out)
+    return out
+
+
+def _edit_manifest(ds: Path, **changes: object) -> None:
+    m = json.loads((ds / "manifest.json").read_text())
+    m.update(changes)
+    (ds / "manifest.json").write_text(json.dumps(m))
+
+
+def test_round_trip_and_units(ds: Path) -> None:
+    d = load(ds)
+    assert [r.name for r in d.runs] == ["step_kp10", "step_kp25", "step_kp46", "instability", "ramp_p", "ramp_pi"]
+    # flow.csv is written in gpm and converted to in³/s on load
+    raw = np.loadtxt(ds / "flow.csv", delimiter=",", skiprows=1)
+    np.testing.assert_allclose(d.flow_test["flow"], raw[:, 1] * 231.0 / 60.0)
+    assert d.given["M"] == pytest.approx(29 / 386.0886, rel=1e-5)
+
+
+def test_headers_in_other_units_are_converted(ds: Path) -> None:
+    text = (ds / "step_kp10.csv").read_text().splitlines()
+    rows = [line.split(",") for line in text[1:]]
+    lines = ["t [ms],r [mm],y [mm],u [V]"] + [
+        f"{float(a) * 1000:.9g},{float(b) * 25.4:.9g},{float(c) * 25.4:.9g},{d}" for a, b, c, d in rows
+    ]
+    before = load(ds).runs[0]
+    (ds / "step_kp10.csv").write_text("\n".join(lines) + "\n")
+    after = load(ds).runs[0]
+    np.testing.assert_allclose(after.y, before.y, rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(after.t, before.t, rtol=1e-8, atol=1e-12)
+
+
+def test_hash_is_stable_and_sensitive(ds: Path) -> None:
+    h1 = load(ds).inputs_sha256
+    assert load(ds).inputs_sha256 == h1
+    with (ds / "calibration.csv").open("a") as f:
+        f.write("5,9\n")
+    assert load(ds).inputs_sha256 != h1
+
+
+def _replace_header(ds: Path, file: str, header: str) -> None:
+    lines = (ds / file).read_text().splitlines()
+    (ds / file).write_text("\n".join([header, *lines[1:]]) + "\n")
+
+
+BAD_CASES = [
+    ("wrong unit dimension", lambda d: _replace_header(d, "step_kp10.csv", "t [s],r [in],y [psi],u [V]"),
+     ["step_kp10.csv", "'y'"]),
+    ("unknown unit", lambda d: _replace_header(d, "calibration.csv", "position [furlongz],voltage [V]"),
+     ["calibration.csv", "furlongz"]),
+    ("missing column", lambda d: _replace_header(d, "flow.csv", "input [V],flowz [gpm]"), ["flow.csv", "missing column", "flow"]),
+    ("bad header cell", lambda d: _replace_header(d, "friction.csv", "speed,force [lbf]"), ["friction.csv", "name [unit]"]),
+    ("garbage manifest", lambda d: (d / "manifest.json").write_text("{not json"), ["manifest.json", "not valid JSON"]),
+    ("manifest list", lambda d: (d / "manifest.json").write_text("[1, 2]"), ["manifest.json", "mapping"]),
+    ("negative weight", lambda d: _edit_manifest(d, given={"weight": "-29 lbf"}), ["manifest.json", "mass must be positive"]),
+    ("weight in psi", lambda d: _edit_manifest(d, given={"weight": "29 psi"}), ["given.weight", "dimension"]),
+    ("unknown field", lambda d: _edit_manifest(d, colour="red"), ["manifest.json", "colour"]),
+    ("unknown run kind", lambda d: _edit_manifest(d, runs=[{"name": "a", "file": "step_kp10.csv", "kind": "sine",
+                                                           "controller": {"Kp": 1}}]), ["runs.0.kind"]),
+    ("path traversal", lambda d: _edit_manifest(d, calibration="../x.csv"), ["calibration", "plain file name"]),
+    ("missing file", lambda d: (d / "ramp_pi.csv").unlink(), ["ramp_pi.csv", "not found"]),
+]
+
+
+@pytest.mark.parametrize(("name", "breaker", "words"), BAD_CASES, ids=[c[0] for c in BAD_CASES])
+def test_bad_dataset_gives_specific_error(ds: Path, name: str, breaker, words: list[str]) -> None:  # noqa: ANN001
+    breaker(ds)
+    with pytest.raises(DatasetError) as exc:
+        load(ds)
+    message = str(exc.value)
+    assert "\n" not in message
+    for w in words:
+        assert w in message, f"{name}: {message!r} lacks {w!r}"
+
+
+@pytest.mark.parametrize(
+    ("row", "value", "words"),
+    [(5, "nan", ["row 5", "'y'", "finite"]), (7, "abc", ["row 7", "not a number"])],
+)
+def test_bad_cell_names_row_and_column(ds: Path, row: int, value: str, words: list[str]) -> None:
+    lines = (ds / "step_kp25.csv").read_text().splitlines()
+    cells = lines[row - 1].split(",")
+    cells[2] = value
+    lines[row - 1] = ",".join(cells)
+    (ds / "step_kp25.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(DatasetError) as exc:
+        load(ds)
+    assert all(w in str(exc.value) for w in ["step_kp25.csv", *words])
+
+
+def test_non_monotonic_time_and_too_few_points(ds: Path) -> None:
+    lines = (ds / "ramp_p.csv").read_text().splitlines()
+    lines[10], lines[11] = lines[11], lines[10]
+    (ds / "ramp_p.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(DatasetError, match=r"ramp_p.csv: time is not strictly increasing at row 12"):
+        load(ds)
+    (ds / "ramp_p.csv").write_text("\n".join(lines[:5]) + "\n")
+    with pytest.raises(DatasetError, match=r"ramp_p.csv: 4 data rows, need at least 20"):
+        load(ds)
+
+
+def test_cli_key_errors_are_one_line_without_traceback(ds: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    _replace_header(ds, "flow.csv", "input [V],flow [lbf]")
+    assert main(["key", str(ds), "-o", str(ds / "key.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err and "flow.csv" in err
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.text(max_size=40))
+def test_arbitrary_header_never_crashes(tmp_path_factory: pytest.TempPathFactory, header: str) -> None:
+    from grader.datasets.csvio import read_table
+    from grader.datasets.schema import CALIBRATION
+
+    path = tmp_path_factory.mktemp("h") / "c.csv"
+    path.write_text(header.replace("\n", " ") + "\n0,1\n1,2\n2,3\n", encoding="utf-8")
+    try:
+        read_table(path, CALIBRATION)
+    except DatasetError as exc:
+        assert "c.csv" in str(exc)

@@ -1,0 +1,93 @@
+"""Identification recovers known parameters from simulated, noisy lab data."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from grader.datasets import load
+from grader.identify import FlowGainFit, FrictionFit, OscillationFit, PotCalibration, coefficient_match, identify
+from grader.model.linear import critical_gain
+from grader.stations import Station
+from grader.synth import make_dataset
+
+SEEDS = [1, 2, 3, 4, 5]
+
+
+def _random_station(base: Station, seed: int) -> Station:
+    """The default station with Kq, Kpot, β/Vt and Kce drawn from realistic ranges."""
+    rng = np.random.default_rng(seed)
+    truth = dict(base.truth)
+    truth["Kq"] = f"{rng.uniform(0.025, 0.05):.5f} in^3/s/mA"
+    truth["Kpot"] = f"{rng.uniform(0.5, 2.0):.4f} V/in"
+    truth["beta_over_Vt"] = f"{rng.uniform(1.2e4, 4e4):.1f} psi/in^3"
+    truth["Kce"] = f"{rng.uniform(3e-4, 1.2e-3):.3e} in^3/s/psi"
+    return base.model_copy(update={"truth": truth})
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_identification_recovers_parameters(tmp_path: Path, station: Station, seed: int) -> None:
+    st = _random_station(station, seed)
+    truth = st.params()
+    ident = identify(load(make_dataset(st, tmp_path / "ds", seed=seed)))
+    est = ident.estimates
+    assert est["Kpot"].value == pytest.approx(truth.Kpot, rel=0.01)
+    assert est["Kq"].value == pytest.approx(truth.Kq, rel=0.02)
+    assert ident.params.beta_over_Vt == pytest.approx(truth.beta_over_Vt, rel=0.05)
+    assert ident.params.Kce == pytest.approx(truth.Kce, rel=0.05)
+    # the students' ζ = 0 coefficient matching is close too (it ignores the ZOH and the growth rate)
+    assert est["beta_over_Vt"].value == pytest.approx(truth.beta_over_Vt, rel=0.08)
+    assert est["Kce"].value == pytest.approx(truth.Kce, rel=0.08)
+
+
+def test_coefficient_match_inverts_routh_for_any_B() -> None:
+    from grader.model.params import Controller, RigParams
+
+    for B in (0.0, 0.05, 0.3):
+        p = RigParams(A=0.147, M=0.0751, Kamp=5.0, Kq=0.0385, Kpot=0.85, beta_over_Vt=22000.0, Kce=7e-4, B=B)
+        kc, w = critical_gain(p)
+        bv, kce = coefficient_match(omega=w, kp_crit=kc, A=p.A, M=p.M, Kamp=p.Kamp, Kq=p.Kq, k_fb=p.Kpot, B=B)
+        assert bv == pytest.approx(p.beta_over_Vt, rel=1e-9)
+        assert kce == pytest.approx(p.Kce, rel=1e-9)
+        assert Controller(Kp=kc).kind == "P"
+
+
+def test_pot_calibration_is_exact_on_a_line() -> None:
+    x = np.linspace(0, 4, 9)
+    fit = PotCalibration().fit(x, 2.0 + 0.85 * x)
+    assert fit.Kpot_.value == pytest.approx(0.85)
+    assert fit.offset_.value == pytest.approx(2.0)
+
+
+def test_flow_fit_excludes_saturation_and_subtracts_leakage() -> None:
+    v = np.arange(-10, 10.01, 0.5)
+    i = 5.0 * v - 1.0
+    q = np.abs(0.04 * np.clip(i, -35, 35)) + 0.2
+    fit = FlowGainFit(Kamp=5.0).fit(v, q)
+    assert fit.Kq_.value == pytest.approx(0.04, rel=1e-6)
+    assert fit.leakage_.value == pytest.approx(0.2, rel=1e-6)
+    assert fit.null_current_.value == pytest.approx(1.0, abs=1e-6)
+    assert not fit.linear_mask_[0] and not fit.linear_mask_[-1]
+
+
+def test_friction_fit_says_whether_B_is_distinguishable() -> None:
+    rng = np.random.default_rng(0)
+    v = np.linspace(0.5, 6, 12)
+    coulomb = FrictionFit().fit(v, 3.0 + rng.normal(0, 0.05, v.size))
+    viscous = FrictionFit().fit(v, 3.0 + 0.5 * v + rng.normal(0, 0.05, v.size))
+    assert coulomb.B_is_zero_ and not viscous.B_is_zero_
+    assert viscous.B_.value == pytest.approx(0.5, rel=0.05)
+    assert coulomb.Fc_.value == pytest.approx(3.0, rel=0.05)
+
+
+def test_oscillation_fit_finds_frequency_and_growth() -> None:
+    t = np.arange(0, 2, 0.001)
+    rng = np.random.default_rng(3)
+    y = 0.2 + 0.01 * np.exp(0.8 * t) * np.sin(150 * t + 0.3) + rng.normal(0, 4e-4, t.size)
+    fit = OscillationFit().fit(t, y)
+    assert fit.omega_.value == pytest.approx(150, rel=1e-3)
+    assert fit.sigma_.value == pytest.approx(0.8, abs=0.05)
+    lo, hi = fit.omega_.interval
+    assert lo < 150 < hi or abs(fit.omega_.value - 150) < 0.05
