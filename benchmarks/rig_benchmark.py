@@ -1,0 +1,90 @@
+"""Rig simulator speed against scipy's solve_ivp at equal accuracy.
+
+Run: ``python benchmarks/rig_benchmark.py``. For a 1.5 s step run at 1 kHz control
+(Kp = 25, default station) and two effect sets, it prints:
+
+* the accuracy of the fixed-step simulator (default substeps) against a tight
+  event-located DOP853 reference (rtol 1e-11);
+* the loosest solve_ivp (RK45, per hold interval, stick-slip events) tolerance that is at
+  least as accurate, and its time per run;
+* runs/s of the simulator for one run and for a batch of 1,000 runs with parameters
+  varied across the batch, and the ratios to solve_ivp.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from grader.model.effects import EffectSet
+from grader.model.params import Controller
+from grader.model.rig import simulate_rig, simulate_rig_batch
+from grader.model.rig_ivp import simulate_rig_ivp
+from grader.stations import load_station
+
+MODELS = {
+    "station (Coulomb 1.2 lbf)": ["coulomb_friction:Fc=1.2lbf"],
+    "all deterministic effects": [
+        "coulomb_friction:Fc=2lbf", "viscous_friction:B=0.2lbf*s/in", "valve_saturation:i_max=40mA",
+        "valve_deadband:width=0.5mA", "valve_hysteresis:width=0.5mA", "pressure_flow_nonlinearity",
+        "sampling_delay:delay=1.5ms", "valve_dynamics:tau=1.5ms",
+    ],
+}
+BATCH = 1000
+
+
+def best_time(fn, repeats: int = 3) -> float:
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def batch_effects(effects: EffectSet, rng: np.random.Generator) -> list[EffectSet]:
+    """``effects`` with Coulomb friction drawn from its typical range, one set per run."""
+    fcs = rng.uniform(0.2, 8.0, BATCH)
+    return [effects.merged(EffectSet({"coulomb_friction": {"Fc": float(fc)}})) for fc in fcs]
+
+
+def bench(name: str, specs: list[str]) -> None:
+    station = load_station("default")
+    p, c = station.params(), Controller(25)
+    t = np.round(np.arange(0.0, 1.5 + 1e-9, p.sample_time), 9)
+    r = np.where(t >= 0.1, 0.2, 0.0)
+    effects = EffectSet.parse(specs)
+    ref, _ = simulate_rig_ivp(p, c, r, effects, rtol=1e-11, atol=1e-13, method="DOP853")
+    y, _ = simulate_rig(p, c, t, r, effects)
+    err = float(np.abs(y - ref).max())
+    t_one = best_time(lambda: simulate_rig(p, c, t, r, effects))
+    ivp_tol, ivp_err, t_ivp = None, np.inf, np.inf
+    for rtol in (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9):
+        y_ivp, _ = simulate_rig_ivp(p, c, r, effects, rtol=rtol, atol=rtol * 1e-3)
+        ivp_err = float(np.abs(y_ivp - ref).max())
+        if ivp_err <= err:
+            ivp_tol = rtol
+            t_ivp = best_time(lambda tol=rtol: simulate_rig_ivp(p, c, r, effects, rtol=tol, atol=tol * 1e-3), repeats=2)
+            break
+    rng = np.random.default_rng(0)
+    params = [p.with_(Kce=p.Kce * f) for f in rng.uniform(0.8, 1.2, BATCH)]
+    sets = batch_effects(effects, rng)
+    t_batch = best_time(lambda: simulate_rig_batch(params, c, t, r, sets), repeats=2)
+    print(f"\n== {name}: {', '.join(specs)}")
+    print(f"  accuracy vs DOP853 reference:   rig {err:.2e} in;  solve_ivp RK45 rtol={ivp_tol:g}: {ivp_err:.2e} in")
+    print(f"  solve_ivp (equal accuracy):     {t_ivp * 1e3:8.1f} ms/run  = {1 / t_ivp:8.1f} runs/s")
+    print(f"  rig, one run:                   {t_one * 1e3:8.1f} ms/run  = {1 / t_one:8.1f} runs/s"
+          f"   ratio {t_ivp / t_one:6.1f}x")
+    print(f"  rig, batch of {BATCH} (Fc, Kce varied): {t_batch:6.2f} s        = {BATCH / t_batch:8.1f} runs/s"
+          f"   ratio {t_ivp * BATCH / t_batch:6.1f}x")
+
+
+def main() -> None:
+    print("Rig simulator benchmark: 1.5 s step run, 1 kHz control, Kp = 25, default station; one process")
+    for name, specs in MODELS.items():
+        bench(name, specs)
+
+
+if __name__ == "__main__":
+    main()
