@@ -1,0 +1,191 @@
+"""Submissions: the schema, and the JSON / YAML readers (XLSX in :mod:`grader.grading.xlsx_io`).
+
+A submission carries ``submission_id``, ``students`` (name, sis_user_id, login_id,
+section, optional Canvas ``id``), ``station``, optionally ``data`` (its group's own
+lab dataset: a folder next to the submission file, or sheets of the XLSX) and
+``answers`` (canonical item -> value). Files are untrusted: sizes are capped before
+reading, YAML aliases are refused, and every problem is a one-line
+:class:`~grader.errors.SubmissionError` naming the file and field.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from grader.errors import SubmissionError
+from grader.grading.items import ITEMS
+from grader.grading.limits import DEFAULT_LIMITS, Limits
+from grader.grading.results import Student
+
+SAFE_ID = re.compile(r"^[A-Za-z0-9_.\-]{1,64}$")
+SUFFIXES = (".json", ".yaml", ".yml", ".xlsx")
+
+
+class StudentModel(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    name: str = Field(min_length=1, max_length=200)
+    sis_user_id: str = Field(default="", max_length=100)
+    login_id: str = Field(default="", max_length=100)
+    section: str = Field(default="", max_length=100)
+    id: str = Field(default="", max_length=100)
+
+    @field_validator("sis_user_id", "login_id", "section", "id", mode="before")
+    @classmethod
+    def _text(cls, v: Any) -> Any:
+        return str(v) if isinstance(v, int) and not isinstance(v, bool) else ("" if v is None else v)
+
+
+class SubmissionModel(BaseModel):
+    """The top level of a JSON/YAML submission."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    submission_id: str = Field(pattern=SAFE_ID.pattern)
+    students: list[StudentModel] = Field(min_length=1, max_length=10)
+    station: str = Field(default="default", max_length=64)
+    data: str | None = Field(default=None, max_length=255)
+    answers: dict[str, Any] = Field(default_factory=dict, max_length=64)
+
+
+@dataclass(frozen=True)
+class InlineData:
+    """A group's dataset given as sheets: ``files`` maps file name -> CSV text; ``runs`` the run specs."""
+
+    files: dict[str, str]
+    runs: list[dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class InvalidAnswer:
+    """An answer known to be unreadable before checking (e.g. an XLSX formula cell)."""
+
+    reason: str
+
+
+@dataclass(frozen=True)
+class Submission:
+    """A read submission; ``data`` is the group's dataset folder, sheets, or None (use the station's)."""
+
+    submission_id: str
+    source: Path
+    students: tuple[Student, ...]
+    station: str
+    answers: dict[str, Any]
+    data: Path | InlineData | None = None
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+def fallback_id(path: Path) -> str:
+    """A safe submission id from a file name (for files that cannot be read)."""
+    stem = re.sub(r"[^A-Za-z0-9_.\-]", "_", path.stem)[:64].strip(".") or "submission"
+    return stem
+
+
+def _pydantic_message(source: str, exc: ValidationError) -> str:
+    err = exc.errors()[0]
+    loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
+    more = f" (+{len(exc.errors()) - 1} more)" if len(exc.errors()) > 1 else ""
+    return f"{source}: field {loc}: {err['msg']}{more}"
+
+
+def _load_text(path: Path, limits: Limits) -> Any:
+    size = path.stat().st_size
+    if size > limits.max_text_bytes:
+        raise SubmissionError(f"{path.name}: file is {size / 1e6:.1f} MB; submissions are limited to "
+                              f"{limits.max_text_bytes / 1e6:g} MB")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise SubmissionError(f"{path.name}: not UTF-8 text") from None
+    if path.suffix == ".json":
+        try:
+            return json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise SubmissionError(f"{path.name}: not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}") from None
+        except RecursionError:
+            raise SubmissionError(f"{path.name}: JSON nested too deeply") from None
+    return _safe_yaml(path.name, text, limits)
+
+
+def _safe_yaml(name: str, text: str, limits: Limits) -> Any:
+    """YAML without aliases (no billion-laughs) and with a bounded number of events."""
+    try:
+        for n, event in enumerate(yaml.parse(text, Loader=yaml.SafeLoader)):
+            if isinstance(event, yaml.AliasEvent):
+                raise SubmissionError(f"{name}: YAML aliases (*name) are not allowed in submissions")
+            if n > limits.max_yaml_events:
+                raise SubmissionError(f"{name}: YAML document too large")
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise SubmissionError(f"{name}: not valid YAML: {first}") from None
+    except RecursionError:
+        raise SubmissionError(f"{name}: YAML nested too deeply") from None
+
+
+def resolve_data_dir(path: Path, data: str) -> Path:
+    """The group's dataset folder, which must lie inside the submission's own folder."""
+    base = path.parent.resolve()
+    if Path(data).is_absolute() or ".." in Path(data).parts:
+        raise SubmissionError(f"{path.name}: field data: {data!r} must be a folder next to the submission "
+                              "(no '..', not absolute)")
+    target = (base / data).resolve()
+    if not target.is_relative_to(base) or not target.is_dir():
+        raise SubmissionError(f"{path.name}: field data: folder {data!r} not found next to the submission")
+    return target
+
+
+def answer_notes(answers: dict[str, Any]) -> tuple[str, ...]:
+    """Notes on answer names that are not canonical items (they are ignored)."""
+    notes = []
+    for k in answers:
+        if k not in ITEMS:
+            close = difflib.get_close_matches(str(k), list(ITEMS), n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            notes.append(f"answer {str(k)[:40]!r} is not an item of this lab and was ignored{hint}")
+    return tuple(notes)
+
+
+def from_mapping(path: Path, raw: Any) -> Submission:
+    """Validate a parsed JSON/YAML document."""
+    if not isinstance(raw, dict):
+        raise SubmissionError(f"{path.name}: must hold a mapping (object) at the top level, got {type(raw).__name__}")
+    try:
+        m = SubmissionModel.model_validate(raw)
+    except ValidationError as exc:
+        raise SubmissionError(_pydantic_message(path.name, exc)) from None
+    students = tuple(Student(s.name, s.sis_user_id, s.login_id, s.section, s.id) for s in m.students)
+    data = resolve_data_dir(path, m.data) if m.data else None
+    return Submission(m.submission_id, path, students, m.station, dict(m.answers), data, answer_notes(m.answers))
+
+
+def read_submission(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> Submission:
+    """Read a JSON, YAML or XLSX submission; raises SubmissionError naming the file and field."""
+    path = Path(path)
+    if not path.is_file():
+        raise SubmissionError(f"{path}: not a file")
+    if path.suffix.lower() not in SUFFIXES:
+        raise SubmissionError(f"{path.name}: unknown submission type (use {', '.join(SUFFIXES)})")
+    if path.suffix.lower() == ".xlsx":
+        from grader.grading.xlsx_io import read_xlsx
+
+        return read_xlsx(path, limits=limits)
+    return from_mapping(path, _load_text(path, limits))
+
+
+def students_hint(path: Path, *, limits: Limits = DEFAULT_LIMITS) -> tuple[Student, ...]:
+    """Best-effort students of a submission that failed validation (for its gradebook row)."""
+    try:
+        raw = _load_text(path, limits) if path.suffix.lower() in (".json", ".yaml", ".yml") else None
+        items = raw.get("students") if isinstance(raw, dict) else None
+        return tuple(Student(**StudentModel.model_validate(s).model_dump(exclude={"id"}), canvas_id=str(s.get("id", "")))
+                     for s in items) if isinstance(items, list) and len(items) <= 10 else ()
+    except (SubmissionError, ValidationError, TypeError, AttributeError, OSError):
+        return ()

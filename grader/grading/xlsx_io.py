@@ -1,0 +1,266 @@
+"""XLSX submissions: the reader (openpyxl, read-only, formulas detected not evaluated) and the template.
+
+Sheets: ``info`` (field | value: submission_id, station), ``students`` (name | sis_user_id |
+login_id | section), ``answers`` (item | value | unit | expected unit | description; design
+parts as ``pd_design.Kp``), optional ``poles`` (Kp | Ki | Kd | real [1/s] | imag [1/s]) and the
+optional data sheets ``calibration``, ``flow``, ``friction`` (headers ``name [unit]``), ``runs``
+(name | kind | Kp | Ki | Kd) and one sheet per run (t [s] | r [in] | y [in]).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import zipfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from openpyxl import Workbook, load_workbook
+from openpyxl.worksheet.datavalidation import DataValidation
+
+from grader.errors import SubmissionError
+from grader.grading.items import ITEMS
+from grader.grading.limits import DEFAULT_LIMITS, Limits
+from grader.grading.results import Student
+from grader.grading.submissions import SAFE_ID, InlineData, InvalidAnswer, Submission, answer_notes
+
+DATA_SHEETS = {"calibration": ("position [in]", "voltage [V]"), "flow": ("input [V]", "flow [in^3/s]"),
+               "friction": ("speed [in/s]", "force [lbf]")}
+RUN_HEADER = ("t [s]", "r [in]", "y [in]")
+STUDENT_FIELDS = ("name", "sis_user_id", "login_id", "section")
+DESIGN_PARTS = {"pd_design": ("Kp", "Kd", "overshoot"), "pi_design": ("Kp", "Ki", "ramp_error")}
+MAX_ROWS = 200_000
+
+
+def _check_zip(path: Path, limits: Limits) -> None:
+    size = path.stat().st_size
+    if size > limits.max_xlsx_bytes:
+        raise SubmissionError(f"{path.name}: file is {size / 1e6:.1f} MB; the limit is {limits.max_xlsx_bytes / 1e6:g} MB")
+    if not zipfile.is_zipfile(path):
+        raise SubmissionError(f"{path.name}: not an XLSX workbook (not a zip archive)")
+    with zipfile.ZipFile(path) as z:
+        infos = z.infolist()
+        if len(infos) > 10_000 or sum(i.file_size for i in infos) > limits.max_xlsx_unzipped:
+            raise SubmissionError(f"{path.name}: workbook unpacks to more than {limits.max_xlsx_unzipped / 1e6:g} MB")
+
+
+def _rows(ws: Any, sheet: str, limit: int = MAX_ROWS) -> Iterator[list[Any]]:
+    """Cell values row by row; a formula cell in a data sheet is an error naming the cell."""
+    for n, row in enumerate(ws.iter_rows()):
+        if n >= limit:
+            raise SubmissionError(f"sheet {sheet!r}: more than {limit} rows")
+        yield [c for c in row]
+
+
+def _cell_value(c: Any, where: str, limits: Limits) -> Any:
+    if c is None or c.value is None:
+        return None
+    if c.data_type == "f":
+        return InvalidAnswer(f"cell {c.coordinate} holds a formula ({str(c.value)[:40]}); type the value itself")
+    v = c.value
+    if isinstance(v, (dt.datetime, dt.date, dt.time)):
+        return InvalidAnswer(f"cell {c.coordinate}: Excel turned the entry into a date; format the cell as text")
+    if isinstance(v, bool):
+        return InvalidAnswer(f"cell {c.coordinate}: TRUE/FALSE is not an answer")
+    if isinstance(v, str) and len(v) > limits.max_string:
+        return InvalidAnswer(f"cell {c.coordinate}: text longer than {limits.max_string} characters")
+    return v
+
+
+def _plain(v: Any, where: str) -> Any:
+    """A value in a non-answer sheet: an unreadable cell is the submission's error."""
+    if isinstance(v, InvalidAnswer):
+        raise SubmissionError(f"{where}: {v.reason}")
+    return v
+
+
+def _info(wb: Any, name: str, limits: Limits) -> dict[str, Any]:
+    out = {}
+    for row in _rows(wb["info"], "info", 50):
+        cells = [_plain(_cell_value(c, "info", limits), f"{name}: sheet 'info'") for c in row[:2]]
+        if len(cells) == 2 and isinstance(cells[0], str) and cells[0].strip():
+            out[cells[0].strip()] = cells[1]
+    return out
+
+
+def _students(wb: Any, name: str, limits: Limits) -> tuple[Student, ...]:
+    rows = list(_rows(wb["students"], "students", 20))
+    out = []
+    for r, row in enumerate(rows[1:], start=2):
+        vals = [_plain(_cell_value(c, "students", limits), f"{name}: sheet 'students' row {r}") for c in row[:4]]
+        vals = ["" if v is None else str(v).strip() for v in vals] + [""] * (4 - len(vals))
+        if vals[0]:
+            out.append(Student(*(v[:200] for v in vals[:4])))
+    if not out:
+        raise SubmissionError(f"{name}: sheet 'students' lists no student (name in column A, from row 2)")
+    return tuple(out)
+
+
+def _answer(value: Any, unit: Any) -> Any:
+    if isinstance(value, InvalidAnswer) or value is None:
+        return value
+    if isinstance(unit, InvalidAnswer):
+        return unit
+    unit = str(unit).strip() if unit is not None else ""
+    text = repr(value) if isinstance(value, float) else str(value)
+    return f"{text} {unit}" if unit else (value if isinstance(value, (int, float)) else text)
+
+
+def _answers(wb: Any, limits: Limits) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for row in list(_rows(wb["answers"], "answers", 300))[1:]:
+        cells = [_cell_value(c, "answers", limits) for c in row[:3]] + [None] * 3
+        item, value, unit = cells[:3]
+        if not isinstance(item, str) or not item.strip():
+            continue
+        item = item.strip()
+        head, _, part = item.partition(".")
+        if head in DESIGN_PARTS and part:
+            out.setdefault(head, {})
+            if isinstance(out[head], dict):
+                out[head][part] = _answer(value, unit)
+        else:
+            out[item] = _answer(value, unit)
+    for head in DESIGN_PARTS:
+        parts = out.get(head)
+        if isinstance(parts, dict):
+            bad = next((v for v in parts.values() if isinstance(v, InvalidAnswer)), None)
+            out[head] = bad or ({k: v for k, v in parts.items() if v is not None} or None)
+    return out
+
+
+def _poles(wb: Any, limits: Limits) -> Any:
+    groups: dict[tuple[float, float, float], list[list[float]]] = {}
+    for r, row in enumerate(list(_rows(wb["poles"], "poles", 500))[1:], start=2):
+        vals = [_cell_value(c, "poles", limits) for c in row[:5]] + [None] * 5
+        if all(v is None for v in vals[:5]):
+            continue
+        bad = next((v for v in vals[:5] if isinstance(v, InvalidAnswer)), None)
+        if bad:
+            return bad
+        if not all(isinstance(v, (int, float)) or v is None for v in vals[:5]) or vals[0] is None or vals[3] is None:
+            return InvalidAnswer(f"sheet 'poles' row {r}: Kp and the real part must be numbers")
+        key = (float(vals[0]), float(vals[1] or 0.0), float(vals[2] or 0.0))
+        groups.setdefault(key, []).append([float(vals[3]), float(vals[4] or 0.0)])
+    return [{"Kp": k[0], "Ki": k[1], "Kd": k[2], "poles": p} for k, p in groups.items()] or None
+
+
+def _csv(wb: Any, sheet: str, name: str, limits: Limits) -> str | None:
+    lines = []
+    for r, row in enumerate(_rows(wb[sheet], sheet), start=1):
+        vals = [_plain(_cell_value(c, sheet, limits), f"{name}: sheet {sheet!r} row {r}") for c in row]
+        if all(v is None for v in vals):
+            continue
+        lines.append(",".join("" if v is None else (repr(v) if isinstance(v, float) else str(v)) for v in vals))
+    return "\n".join(lines) + "\n" if len(lines) > 1 else None
+
+
+def _data(wb: Any, name: str, limits: Limits) -> InlineData | None:
+    files = {f"{s}.csv": text for s in DATA_SHEETS if s in wb.sheetnames and (text := _csv(wb, s, name, limits))}
+    if not files:
+        return None
+    runs = []
+    if "runs" in wb.sheetnames:
+        for r, row in enumerate(list(_rows(wb["runs"], "runs", 50))[1:], start=2):
+            vals = [_plain(_cell_value(c, "runs", limits), f"{name}: sheet 'runs' row {r}") for c in row[:5]]
+            if vals and vals[0] is not None:
+                run = str(vals[0])
+                if run not in wb.sheetnames or not SAFE_ID.match(run):
+                    raise SubmissionError(f"{name}: sheet 'runs' row {r}: no sheet named {run!r} with the run's data")
+                text = _csv(wb, run, name, limits)
+                if text is None:
+                    raise SubmissionError(f"{name}: sheet {run!r} holds no data")
+                files[f"{run}.csv"] = text
+                vals = vals + [None] * 5
+                runs.append({"name": run, "file": f"{run}.csv", "kind": vals[1],
+                             "controller": {"Kp": vals[2], "Ki": vals[3] or 0.0, "Kd": vals[4] or 0.0}})
+    return InlineData(files=files, runs=runs)
+
+
+def read_xlsx(path: Path, *, limits: Limits = DEFAULT_LIMITS) -> Submission:
+    """Read an XLSX submission (formulas are reported, never evaluated)."""
+    _check_zip(path, limits)
+    try:
+        wb = load_workbook(path, read_only=True, data_only=False)
+    except Exception as exc:  # openpyxl raises many types on corrupt files
+        raise SubmissionError(f"{path.name}: cannot open the workbook ({type(exc).__name__})") from None
+    try:
+        missing = [s for s in ("info", "students", "answers") if s not in wb.sheetnames]
+        if missing:
+            raise SubmissionError(f"{path.name}: missing sheet(s) {', '.join(missing)} (use 'grader template' for the layout)")
+        info = _info(wb, path.name, limits)
+        sid = str(info.get("submission_id") or "").strip()
+        if not SAFE_ID.match(sid):
+            raise SubmissionError(f"{path.name}: sheet 'info': submission_id {sid[:64]!r} must be 1-64 letters, digits, _ . -")
+        answers = _answers(wb, limits)
+        if "poles" in wb.sheetnames and answers.get("closed_loop_poles") is None:
+            answers["closed_loop_poles"] = _poles(wb, limits)
+        return Submission(sid, path, _students(wb, path.name, limits), str(info.get("station") or "default")[:64],
+                          answers, _data(wb, path.name, limits), answer_notes(answers))
+    finally:
+        wb.close()
+
+
+def _unit_hint(item: str, gain_unit: str) -> str:
+    spec = ITEMS[item]
+    if spec.kind == "expression":
+        return "(expression)"
+    unit = spec.unit or ("" if gain_unit == "dimensionless" else gain_unit)
+    return unit.replace("**", "^") or "(none)"
+
+
+def _answer_rows(items: list[str], gain_unit: str) -> list[tuple[str, str, str, str]]:
+    """(label, expected unit, description, kind) of each answer row; poles have their own sheet."""
+    rows = []
+    for item in items:
+        spec = ITEMS[item]
+        if spec.kind == "design":
+            rows += [(f"{item}.{p}", _design_hint(p, gain_unit), spec.description, spec.kind) for p in DESIGN_PARTS[item]]
+        elif spec.kind != "poles":
+            rows.append((item, _unit_hint(item, gain_unit), spec.description, spec.kind))
+    return rows
+
+
+def _answers_sheet(wb: Workbook, items: list[str], gain_unit: str) -> None:
+    ans = wb.create_sheet("answers")
+    ans.append(("item", "value", "unit", "expected unit", "description"))
+    numbers = DataValidation(type="decimal", operator="between", formula1="-1E+300", formula2="1E+300",
+                             errorStyle="warning", error="Type a number; put its unit in column C.", showErrorMessage=True)
+    ans.add_data_validation(numbers)
+    for label, unit, description, kind in _answer_rows(items, gain_unit):
+        ans.append((label, None, None, unit, description))
+        r = ans.max_row
+        if not unit.startswith("("):
+            offer = DataValidation(type="list", formula1=f'"{unit}"', errorStyle="warning", allow_blank=True,
+                                   showErrorMessage=False)
+            ans.add_data_validation(offer)
+            offer.add(f"C{r}")
+        if kind in ("quantity", "design"):
+            numbers.add(f"B{r}")
+
+
+def build_template(items: list[str], *, station: str, gain_unit: str) -> Workbook:
+    """The submission workbook for ``items`` (canonical names)."""
+    wb = Workbook()
+    ws = wb.active
+    ws.title = "info"
+    for row in (("field", "value"), ("submission_id", "group-01"), ("station", station)):
+        ws.append(row)
+    wb.create_sheet("students").append(STUDENT_FIELDS)
+    _answers_sheet(wb, items, gain_unit)
+    if "closed_loop_poles" in items:
+        wb.create_sheet("poles").append(("Kp", "Ki", "Kd", "real [1/s]", "imag [1/s]"))
+    for sheet, header in DATA_SHEETS.items():
+        wb.create_sheet(sheet).append(header)
+    wb.create_sheet("runs").append(("name", "kind", "Kp", "Ki", "Kd"))
+    for ws in wb.worksheets:
+        for col in ("A", "B", "C", "D", "E"):
+            ws.column_dimensions[col].width = 22 if col != "E" else 70
+    return wb
+
+
+def _design_hint(part: str, gain_unit: str) -> str:
+    units = {"Kp": gain_unit, "Ki": "1/s", "Kd": "s", "overshoot": "%", "ramp_error": "in"}
+    base = "" if gain_unit == "dimensionless" else f"{gain_unit}*"
+    u = units[part] if part in ("Kp", "overshoot", "ramp_error") else base + units[part]
+    return u.replace("dimensionless", "(none)")

@@ -1,0 +1,120 @@
+"""Canvas CSV, Gradescope results.json and package, feedback Markdown, report JSON, gradebook XLSX."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import zipfile
+from pathlib import Path
+
+import pytest
+from openpyxl import load_workbook
+
+from grader.cli import main
+from grader.exports.atomic import workbook_bytes, write_text, zip_bytes
+from grader.exports.bundle import write_outputs
+from grader.exports.canvas import canvas_csv
+from grader.exports.feedback_md import feedback_md
+from grader.exports.gradebook_xlsx import gradebook, item_statistics
+from grader.exports.gradescope import package_zip, results_json
+from grader.exports.report_json import report_json
+from grader.grading.results import ItemResult, Student, SubmissionResult
+from grader.grading.rubric import load_rubric
+
+ROOT = Path(__file__).resolve().parents[2]
+RUBRIC = load_rubric(ROOT / "rubrics" / "hydraulic_positioner.yaml")
+ITEMS = (ItemResult("Kq", "unit_mismatch", 3.0, 6.0, "your Kq is 1728× the expected value | pipe", mistake="unit_slip:ft³->in³",
+                    detail={"factor": 1728.0, "unit_used": "ft³", "value": float("nan")}),
+         ItemResult("Kpot", "correct", 4.0, 4.0, "Kpot = 0.85 V/in: correct."))
+GOOD = SubmissionResult("g-01", "g.json", (Student("Ada Lovelace", "1001", "ada", "L01", "55"), Student("Alan Turing", "1002", "at", "L01")), ITEMS)
+BAD = SubmissionResult("broken", "broken.json", (), tuple(ItemResult(i.item, "invalid", 0.0, i.max_points, "not graded") for i in ITEMS),
+                       valid=False, error="not valid JSON")
+
+
+def test_canvas_csv() -> None:
+    rows = list(csv.reader(io.StringIO(canvas_csv([GOOD, BAD], assignment="Lab 4", assignment_id="123"))))
+    assert rows[0] == ["Student", "ID", "SIS User ID", "SIS Login ID", "Section", "Lab 4 (123)"]
+    assert rows[1] == ["(no student listed in submission broken)", "", "", "", "", "0"]
+    assert rows[2] == ["Ada Lovelace", "55", "1001", "ada", "L01", "7"] and rows[3][0] == "Alan Turing"
+
+
+def test_gradescope_results_schema() -> None:
+    data = json.loads(results_json(GOOD))
+    assert data["score"] == 7.0 and {"tests", "output", "visibility"} <= set(data)
+    for t in data["tests"]:
+        assert set(t) == {"name", "score", "max_score", "status", "output", "tags", "visibility"}
+        assert t["status"] in ("passed", "failed") and isinstance(t["tags"], list)
+    assert data["tests"][0]["tags"] == ["unit_mismatch", "unit_slip:ft³->in³"]
+    assert "could not be graded: not valid JSON" in json.loads(results_json(BAD))["output"]
+
+
+def test_report_json_schema_and_clean_numbers() -> None:
+    data = json.loads(report_json([GOOD, BAD]))
+    assert [s["submission_id"] for s in data["submissions"]] == ["broken", "g-01"]
+    sub = data["submissions"][1]
+    assert set(sub) == {"submission_id", "score", "max_score", "valid", "error", "items"}
+    assert set(sub["items"][0]) == {"item", "status", "points", "max_points", "mistake", "detail", "feedback"}
+    assert sub["items"][0]["detail"] == {"factor": 1728.0, "unit_used": "ft³", "value": None}
+
+
+def test_feedback_markdown_escapes_and_explains_invalid() -> None:
+    md = feedback_md(GOOD, title="Lab 4")
+    assert md.startswith("# Lab 4: g-01") and "**Score: 7 / 10**" in md and "\\| pipe" in md
+    assert "unit\\_slip" not in md and "| Kq | unit mismatch | 3 / 6 |" in md
+    assert "could not be graded:** not valid JSON" in feedback_md(BAD)
+
+
+def test_gradebook_statistics() -> None:
+    rows = item_statistics([GOOD, BAD], ["Kq", "Kpot"])
+    assert rows[0][:4] == ["Kq", 6.0, 1.5, 25.0] and rows[0][-1] == "unit_slip:ft³->in³ (1)"
+    wb = load_workbook(io.BytesIO(workbook_bytes(gradebook([GOOD, BAD], ["Kq", "Kpot"]))))
+    assert wb.sheetnames == ["grades", "item statistics", "mistakes"]
+    grades = list(wb["grades"].iter_rows(values_only=True))
+    assert grades[0][:8] == ("submission_id", "students", "SIS user ids", "sections", "valid", "score", "max_score", "Kq")
+    assert grades[2][0] == "g-01" and grades[2][7] == 3.0
+
+
+def test_files_are_deterministic_and_atomic(tmp_path: Path) -> None:
+    assert workbook_bytes(gradebook([GOOD], ["Kq"])) == workbook_bytes(gradebook([GOOD], ["Kq"]))
+    assert zip_bytes([("a", b"1", 0o644)]) == zip_bytes([("a", b"1", 0o644)])
+    write_text(tmp_path / "x.txt", "hello")
+    assert [p.name for p in tmp_path.iterdir()] == ["x.txt"]
+
+
+def test_bundle_removes_stale_files(tmp_path: Path) -> None:
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "old.json").write_text("{}")
+    written = write_outputs([GOOD, BAD], tmp_path, RUBRIC, assignment="Lab 4", assignment_id="1")
+    assert sorted(p.name for p in (tmp_path / "results").iterdir()) == ["broken.json", "g-01.json"]
+    assert len(written) == 7
+
+
+def test_gradescope_package(tmp_path: Path) -> None:
+    data = package_zip(ROOT, ROOT / "rubrics" / "hydraulic_positioner.yaml", convention="inches")
+    assert data == package_zip(ROOT, ROOT / "rubrics" / "hydraulic_positioner.yaml", convention="inches")
+    with zipfile.ZipFile(io.BytesIO(data)) as z:
+        names = z.namelist()
+        assert names[:3] == ["setup.sh", "run_autograder", "rubric.yaml"]
+        assert (z.getinfo("run_autograder").external_attr >> 16) & 0o111
+        assert "--feedback-convention inches" in z.read("run_autograder").decode()
+        assert "grader/grading/pipeline.py" in names and "pyproject.toml" in names
+        assert "reference_solutions/stations/default.yaml" in names
+        assert not any("__pycache__" in n for n in names)
+    assert main(["gradescope-package", "-o", str(tmp_path / "a.zip")]) == 0
+
+
+@pytest.mark.parametrize(("files", "score_zero", "message"), [
+    ([], True, "no submission file"),
+    (["a.json", "b.json"], True, "2 submission files"),
+    (["garbage.json"], True, "not valid JSON"),
+])
+def test_gradescope_verb_paths(tmp_path: Path, files: list[str], score_zero: bool, message: str) -> None:
+    sub = tmp_path / "submission"
+    sub.mkdir()
+    for f in files:
+        (sub / f).write_text("{ not json")
+    out = tmp_path / "results" / "results.json"
+    assert main(["gradescope", "--submission-dir", str(sub), "--results", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert (data["score"] == 0) is score_zero and message in data["output"]

@@ -1,0 +1,64 @@
+"""``grader check`` never shows a key value or a reference expression; the prelab works without data."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from grader.cli import main
+from grader.grading import tf
+from grader.grading.context import KeyContext, KeyStore
+
+from .conftest import FIXTURES, key_args
+
+CHECKED = ["correct.json", "unit_kq_ft3.json", "mistake_weight_as_mass.json", "ecf_kq.json", "tf_wrong.json",
+           "bad_design_goal.json", "mistake_open_loop_poles.json", "wrong_dimension.json", "mistake_kpot_convention.json"]
+
+
+def _key_numbers(kc: KeyContext) -> set[str]:
+    """Every way a key value could be printed: 3 to 6 significant figures, per scalar and per pole."""
+    values: list[float] = []
+    for name, entry in kc.key.quantities.items():
+        if isinstance(entry.value, (int, float)):
+            values.append(float(entry.value))
+        elif name == "closed_loop_poles":
+            values += [abs(x) for run in entry.value for pole in run["poles"] for x in pole]
+    values += [v for v in kc.key.model.values()]
+    out = set()
+    for v in values:
+        if v == 0 or float(v).is_integer():
+            continue
+        for digits in range(3, 7):
+            out.add(f"{abs(v):.{digits}g}")
+    return {t for t in out if len(t.replace(".", "").replace("0", "")) >= 3}
+
+
+@pytest.mark.parametrize("name", CHECKED)
+def test_check_reveals_no_key_value(name: str, kc: KeyContext, store: KeyStore, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["check", str(FIXTURES / name), *key_args(store)]) == 0
+    out = capsys.readouterr().out
+    assert "status" in out and "Kq" in out
+    numbers = set(re.findall(r"\d+\.?\d*(?:e[-+]?\d+)?", out))
+    submitted = set(re.findall(r"\d+\.?\d*(?:e[-+]?\d+)?", (FIXTURES / name).read_text()))
+    leaked = {t for t in _key_numbers(kc) if t in numbers - submitted}
+    assert not leaked, leaked
+    for form in tf.FORMS:
+        ref = str(tf._loop_forms("volts")[form]).replace(" ", "")
+        assert ref not in out.replace(" ", "")
+    assert "Expected" not in out and "expected " not in out.replace("expected value", "")
+
+
+def test_prelab_needs_no_lab_data(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    empty = tmp_path / "no-datasets"
+    empty.mkdir()
+    assert main(["check", str(FIXTURES / "correct.json"), "--datasets", str(empty)]) == 0
+    out = capsys.readouterr().out
+    assert "no lab data" in out and "checking the prelab items only" in out
+    assert out.count("correct") >= 3 and "not checked without lab data: Kpot" in out.replace("\n", " ")
+
+
+def test_check_reports_an_unreadable_file(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["check", str(FIXTURES / "garbage.json")]) == 1
+    assert "not valid JSON" in capsys.readouterr().out

@@ -1,0 +1,103 @@
+"""Batches: nothing dropped, invalid submissions still produce every output, deterministic, exit codes."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from grader.cli import main
+from grader.grading.context import KeyStore
+from grader.grading.grade import GradeOptions
+from grader.grading.pipeline import expand_inputs, grade_batch, read_all
+
+from .conftest import FIXTURES, key_args
+
+
+def _copy(tmp_path: Path, names: list[str]) -> Path:
+    folder = tmp_path / "subs"
+    folder.mkdir()
+    for n in names:
+        shutil.copy(FIXTURES / n, folder / n)
+    return folder
+
+
+def test_expand_inputs_files_folders_globs(tmp_path: Path) -> None:
+    folder = _copy(tmp_path, ["correct.json", "correct.yaml", "garbage.json"])
+    (folder / "notes.txt").write_text("x")
+    assert [p.name for p in expand_inputs([str(folder)])] == ["correct.json", "correct.yaml", "garbage.json"]
+    assert [p.name for p in expand_inputs([str(folder / "*.yaml"), str(folder / "correct.json")])] == ["correct.json", "correct.yaml"]
+
+
+def test_duplicate_ids_are_both_kept(tmp_path: Path, opts: GradeOptions, store: KeyStore) -> None:
+    folder = _copy(tmp_path, ["correct.json"])
+    shutil.copy(FIXTURES / "correct.json", folder / "again.json")
+    results = list(grade_batch(read_all(expand_inputs([str(folder)]), opts), opts, store, workers=1))
+    assert [r.valid for r in results] == [True, False]
+    assert results[1].submission_id == "correct~2" and "duplicate submission_id 'correct' (also in again.json)" in results[1].error
+
+
+def test_group_data_is_graded_against_its_own_key(tmp_path: Path, linear_dataset: Path, opts: GradeOptions,
+                                                  store: KeyStore, kc) -> None:
+    folder = tmp_path / "g"
+    shutil.copytree(linear_dataset, folder / "mydata")
+    sub = json.loads((FIXTURES / "correct.json").read_text())
+    sub["data"] = "mydata"
+    (folder / "group.json").write_text(json.dumps(sub))
+    [result] = grade_batch(read_all([folder / "group.json"], opts), opts, store, workers=1)
+    assert result.valid and "your group's own data" in result.notes[-1]
+    own = store.for_dataset(folder / "mydata")
+    assert own.key.inputs_sha256 != kc.key.inputs_sha256
+    kq = next(i for i in result.items if i.item == "Kq")
+    assert kq.detail["expected"] == pytest.approx(own.value("Kq"))
+
+
+def test_cli_grade_writes_every_output_and_lists_invalid(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                         store: KeyStore) -> None:
+    folder = _copy(tmp_path, ["correct.json", "garbage.json", "xlsx_formula.xlsx", "yaml_bomb.yaml"])
+    args = [str(folder), "--out", str(tmp_path / "out"), "--no-progress", *key_args(store),
+            "--assignment", "Lab 4", "--assignment-id", "77"]
+    assert main(["grade", *args]) == 1
+    err = capsys.readouterr().err
+    assert "2 submission(s) could not be graded" in err and "garbage.json" in err and "yaml_bomb.yaml" in err
+    out = tmp_path / "out"
+    report = json.loads((out / "report.json").read_text())
+    ids = sorted(s["submission_id"] for s in report["submissions"])
+    assert ids == ["bomb", "correct", "garbage", "xlsx-formula"] or ids == ["correct", "garbage", "xlsx-formula", "yaml_bomb"]
+    for sid in ids:
+        assert (out / "results" / f"{sid}.json").is_file() and (out / "feedback" / f"{sid}.md").is_file()
+    assert (out / "grades.csv").read_text().splitlines()[0].endswith(",Lab 4 (77)")
+    assert not list(out.rglob("*.tmp"))
+    first = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert main(["grade", *args]) == 1
+    assert first == {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+
+
+def test_cli_grade_exit_zero_when_all_graded(tmp_path: Path, store: KeyStore) -> None:
+    folder = _copy(tmp_path, ["correct.json", "mistake_kamp.json"])
+    assert main(["grade", str(folder), "--out", str(tmp_path / "o"), "--no-progress", *key_args(store)]) == 0
+
+
+def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["grade", str(tmp_path / "nothing*.json"), "--out", str(tmp_path / "o")]) == 2
+    assert "no file matches" in capsys.readouterr().err
+    bad = tmp_path / "r.yaml"
+    bad.write_text("rubric: x\nitems: {}\n")
+    assert main(["grade", str(FIXTURES / "correct.json"), "--rubric", str(bad), "--out", str(tmp_path / "o")]) == 2
+    assert "at least one item" in capsys.readouterr().err
+
+
+def test_key_without_a_quantity_marks_only_that_item(kc, opts: GradeOptions) -> None:
+    from dataclasses import replace
+
+    from grader.grading.grade import check_rubric_units, grade_submission
+    from grader.grading.submissions import read_submission
+
+    key = kc.key.model_copy(update={"quantities": {k: v for k, v in kc.key.quantities.items() if k != "ramp_ess_P"}})
+    short = replace(kc, key=key, memo={})
+    check_rubric_units(opts.rubric, short)
+    result = grade_submission(read_submission(FIXTURES / "correct.json"), short, opts)
+    bad = [i for i in result.items if i.status != "correct"]
+    assert [(i.item, i.status) for i in bad] == [("ramp_ess_P", "invalid")] and "cannot be checked" in bad[0].feedback

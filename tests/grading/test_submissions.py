@@ -1,0 +1,122 @@
+"""Submission readers: JSON, YAML, XLSX (and its template); limits on untrusted files."""
+
+from __future__ import annotations
+
+import json
+import time
+import zipfile
+from pathlib import Path
+
+import pytest
+from openpyxl import load_workbook
+
+from grader.errors import SubmissionError
+from grader.exports.atomic import workbook_bytes
+from grader.grading.items import ITEMS
+from grader.grading.submissions import InlineData, InvalidAnswer, read_submission
+from grader.grading.xlsx_io import build_template
+
+from .conftest import FIXTURES
+
+STUDENTS = [{"name": "Ada", "sis_user_id": 1001, "login_id": "ada", "section": "L01"}]
+
+
+def _write(tmp_path: Path, name: str, data: object) -> Path:
+    path = tmp_path / name
+    path.write_text(json.dumps(data))
+    return path
+
+
+def test_json_and_yaml_fixtures_read_the_same() -> None:
+    a, b = read_submission(FIXTURES / "correct.json"), read_submission(FIXTURES / "correct.yaml")
+    assert a.answers == b.answers and a.students == b.students
+    assert a.students[0].sis_user_id == "1001" and a.station == "default"
+
+
+def test_fifty_megabyte_string_is_refused_quickly(tmp_path: Path) -> None:
+    path = tmp_path / "huge.json"
+    with path.open("w") as f:
+        f.write('{"submission_id": "huge", "students": [{"name": "A"}], "answers": {"closed_loop_tf": "')
+        f.write("s+" * 25_000_000)
+        f.write('s"}}')
+    t0 = time.perf_counter()
+    with pytest.raises(SubmissionError, match="limited to 1 MB"):
+        read_submission(path)
+    assert time.perf_counter() - t0 < 1.0
+
+
+def test_unknown_answer_names_become_notes(tmp_path: Path) -> None:
+    sub = read_submission(_write(tmp_path, "s.json", {"submission_id": "s", "students": STUDENTS, "answers": {"Kqq": 1}}))
+    assert sub.notes == ("answer 'Kqq' is not an item of this lab and was ignored; did you mean 'Kq'?",)
+
+
+def test_group_data_folder_must_be_next_to_the_submission(tmp_path: Path) -> None:
+    (tmp_path / "mydata").mkdir()
+    sub = read_submission(_write(tmp_path, "s.json", {"submission_id": "s", "students": STUDENTS, "data": "mydata"}))
+    assert sub.data == (tmp_path / "mydata").resolve()
+    outside = tmp_path.parent / "elsewhere"
+    outside.mkdir(exist_ok=True)
+    (tmp_path / "link").symlink_to(outside)
+    with pytest.raises(SubmissionError, match="not found next to the submission"):
+        read_submission(_write(tmp_path, "t.json", {"submission_id": "t", "students": STUDENTS, "data": "link"}))
+    with pytest.raises(SubmissionError, match="no '..'"):
+        read_submission(_write(tmp_path, "u.json", {"submission_id": "u", "students": STUDENTS, "data": "/etc"}))
+
+
+@pytest.mark.parametrize(("name", "text", "message"), [
+    ("a.txt", "x", "unknown submission type"),
+    ("b.yaml", "a: [1, 2\n", "not valid YAML"),
+    ("c.json", "[" * 100_000, "nested too deeply|not valid JSON"),
+    ("d.json", '{"submission_id": "d", "students": [], "answers": {}}', "field students"),
+    ("e.json", '{"submission_id": "e", "students": [{"name": "A"}], "extra": 1}', "field extra"),
+    ("f.yaml", "submission_id: f\nstudents: [{name: A}]\nanswers: !!python/object:os.system {}\n", "not valid YAML"),
+])
+def test_malformed_files(tmp_path: Path, name: str, text: str, message: str) -> None:
+    (tmp_path / name).write_text(text)
+    with pytest.raises(SubmissionError, match=message):
+        read_submission(tmp_path / name)
+
+
+def test_template_lists_every_item_with_units_and_reads_back(tmp_path: Path) -> None:
+    path = tmp_path / "lab4.xlsx"
+    path.write_bytes(workbook_bytes(build_template(list(ITEMS), station="default", gain_unit="dimensionless")))
+    wb = load_workbook(path)
+    assert {"info", "students", "answers", "poles", "calibration", "flow", "friction", "runs"} <= set(wb.sheetnames)
+    rows = {r[0]: r for r in wb["answers"].iter_rows(min_row=2, values_only=True)}
+    assert rows["Kq"][3] == "in^3/s/mA" and rows["pd_design.Kd"][3] == "s" and rows["closed_loop_tf"][3] == "(expression)"
+    assert wb["answers"].data_validations.dataValidation
+    wb["students"].append(["Ada Lovelace", "1001", "ada", "L01"])
+    for r in wb["answers"].iter_rows(min_row=2):
+        if r[0].value == "Kq":
+            r[1].value, r[2].value = 0.0385, "in^3/s/mA"
+        if r[0].value == "pd_design.Kp":
+            r[1].value = 40
+        if r[0].value == "Kpot":
+            r[1].value = "=A1*2"
+    wb.save(path)
+    sub = read_submission(path)
+    assert sub.answers["Kq"] == "0.0385 in^3/s/mA" and sub.answers["pd_design"] == {"Kp": 40}
+    assert isinstance(sub.answers["Kpot"], InvalidAnswer) and "formula" in sub.answers["Kpot"].reason
+    assert sub.students[0].name == "Ada Lovelace" and sub.data is None
+
+
+def test_xlsx_group_data_sheets_become_a_dataset(tmp_path: Path) -> None:
+    wb = build_template(["Kq"], station="default", gain_unit="dimensionless")
+    wb["students"].append(["Ada"])
+    for x in range(5):
+        wb["calibration"].append([x * 0.5, 4.2 + 0.85 * x * 0.5])
+    path = tmp_path / "g.xlsx"
+    wb.save(path)
+    sub = read_submission(path)
+    assert isinstance(sub.data, InlineData) and sub.data.files["calibration.csv"].startswith("position [in],voltage [V]\n")
+
+
+def test_xlsx_zip_bomb_and_non_zip(tmp_path: Path) -> None:
+    bomb = tmp_path / "bomb.xlsx"
+    with zipfile.ZipFile(bomb, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("xl/big.xml", b"0" * 45_000_000)
+    with pytest.raises(SubmissionError, match="unpacks to more than"):
+        read_submission(bomb)
+    (tmp_path / "fake.xlsx").write_text("not a zip")
+    with pytest.raises(SubmissionError, match="not an XLSX"):
+        read_submission(tmp_path / "fake.xlsx")
