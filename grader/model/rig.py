@@ -126,7 +126,10 @@ class _Integrator:
         if brk.size == 0:
             return
         f1, f0, fc = np.abs(force[brk]), np.abs(a.A[brk] * old[P, brk]), a.Fc[brk]
-        rem = (f1 - fc) / np.maximum(f1 - f0, 1e-300) * _at(h, brk)
+        # fraction of the step since |force| passed Fc (all of it if it was already above: a mass
+        # that stuck at a reversal while the force exceeded Fc breaks away at once)
+        frac = np.where(f0 >= fc, 1.0, np.clip((f1 - fc) / np.maximum(f1 - f0, 1e-300), 0.0, 1.0))
+        rem = frac * _at(h, brk)
         acc = np.sign(force[brk]) * (f1 - fc) * a.inv_M[brk]  # excess acceleration at the step's end
         dx = acc * rem**2 / 6.0
         new[V, brk] = 0.5 * acc * rem

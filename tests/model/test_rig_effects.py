@@ -155,3 +155,22 @@ def test_the_controller_acts_on_the_noisy_quantised_reading(p: RigParams) -> Non
     t, r, y, u = _run(p, 25, effects, end=0.4, rng=np.random.default_rng(5))
     np.testing.assert_allclose(u, np.clip(25 * p.Kpot * (r - y), -10, 10), atol=1e-12)
     assert np.std(y[t < 0.1]) == pytest.approx(0.002, rel=0.3)
+
+
+def test_chattering_pd_design_on_a_sticky_noisy_rig_stays_finite() -> None:
+    """Regression: a mass that sticks while the valve force already exceeds Fc must break away
+    at once (the breakaway fraction is clipped to the step), not blow up to NaN."""
+    import warnings
+
+    from grader.keys import read_key
+    from grader.stations import reference_dir
+
+    p = read_key(reference_dir() / "keys" / "default.json").params()
+    t = np.arange(0.0, 1.5, 0.001)
+    r = np.where(t >= 0.1, 0.2, 0.0)
+    eff = EffectSet.parse(["coulomb_friction:Fc=1.2lbf", "sensor_quantization:bits=14", "sensor_noise:sigma=0.0004in"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        y, u = simulate_rig(p, Controller(20, Kd=1.8), t, r, eff, rng=np.random.default_rng(0))
+    assert np.all(np.isfinite(y)) and np.all(np.abs(u) <= 10.0)
+    assert abs(np.mean(y[-300:]) - 0.2) < 0.01
