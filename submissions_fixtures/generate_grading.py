@@ -38,7 +38,7 @@ from grader.datasets import load  # noqa: E402
 from grader.exports.atomic import workbook_bytes  # noqa: E402
 from grader.grading.context import KeyStore  # noqa: E402
 from grader.grading.rubric import load_rubric  # noqa: E402
-from grader.identify.predict import gain_for_overshoot, gain_no_overshoot  # noqa: E402
+from grader.model.zloop import gain_for_overshoot, gain_no_overshoot  # noqa: E402
 from grader.model.params import Controller, RigParams  # noqa: E402
 from grader.model.sampled import simulate  # noqa: E402
 

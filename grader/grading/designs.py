@@ -1,6 +1,6 @@
 """PD and PI design checks: on the group's identified model and on the rig simulator.
 
-On the model (the key's sampled-loop model, :mod:`grader.grading.fastloop`): is the loop
+On the model (the key's sampled-loop model, :mod:`grader.model.zloop`): is the loop
 stable; does the design reach its goal (PD cuts the step overshoot of P alone at the same
 Kp; PI removes the ramp error P alone leaves); does the claimed overshoot or ramp error
 match the simulation. On the rig (:func:`grader.model.rig.simulate_rig_batch` with the
@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from grader.errors import GraderError
-from grader.grading import fastloop
+from grader.model import zloop
 from grader.grading.answers import DesignAnswer, Gains
 from grader.grading.rubric import DesignSpec
 from grader.model.effects import EffectSet
@@ -51,14 +51,14 @@ class ModelVerdict:
 def evaluate_design(item: str, answer: DesignAnswer, p: RigParams, spec: DesignSpec, *, ramp_rate: float) -> ModelVerdict:
     """Simulate ``answer`` on the model ``p`` and judge it against ``spec``."""
     g = answer.gains
-    stable = fastloop.is_stable(p, g)
+    stable = zloop.is_stable(p, g)
     if item == "pd_design":
-        achieved, baseline = fastloop.overshoot(p, g), fastloop.overshoot(p, Gains(Kp=g.Kp))
+        achieved, baseline = zloop.overshoot(p, g), zloop.overshoot(p, Gains(Kp=g.Kp))
         goal = g.Kd > 0 and achieved <= (1.0 - spec.min_reduction) * baseline
         goal = goal and (spec.max_overshoot is None or achieved <= spec.max_overshoot)
     else:
-        achieved = fastloop.ramp_error(p, g, ramp_rate, spec.ramp_seconds)
-        baseline = fastloop.ramp_error(p, Gains(Kp=g.Kp), ramp_rate, spec.ramp_seconds)
+        achieved = zloop.ramp_error(p, g, ramp_rate, spec.ramp_seconds)
+        baseline = zloop.ramp_error(p, Gains(Kp=g.Kp), ramp_rate, spec.ramp_seconds)
         goal = g.Ki > 0 and abs(achieved) <= spec.max_ramp_error_fraction * abs(baseline)
     claim_ok = None
     if answer.claim is not None and stable:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from grader.errors import GraderError
-from grader.grading import fastloop
+from grader.model import zloop
 from grader.grading.context import KeyContext
 from grader.identify.critical import coefficient_match
 from grader.model.linear import closed_loop_poles, ramp_error
@@ -53,9 +53,9 @@ def _prediction(kind: str) -> Callable[[KeyContext, Mapping[str, float]], Any]:
     def compute(kc: KeyContext, own: Mapping[str, float]) -> Any:
         p = student_model(kc, own)
         if kind == "no_overshoot":
-            return fastloop.gain_no_overshoot(p)
+            return zloop.gain_no_overshoot(p)
         if kind == "25":
-            return fastloop.gain_for_overshoot(p, 0.25)
+            return zloop.gain_for_overshoot(p, 0.25)
         if kind == "ramp":
             inputs = kc.key.quantities["ramp_ess_P"].inputs
             return ramp_error(p, float(inputs["Kp"]), float(inputs["ramp rate [in/s]"]))

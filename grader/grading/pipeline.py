@@ -140,7 +140,7 @@ def _rig_chunk(args: tuple[list[RigCase], float]) -> dict[RigCase, RigVerdict | 
 def rig_prepass(subs: list[Read], keys: list[KeyContext | str | None], opts: GradeOptions, *,
                 workers: int = 1) -> dict[RigCase, RigVerdict | None]:
     """Batched rig verdicts for every readable design that is stable on its model (split over workers)."""
-    from grader.grading import fastloop
+    from grader.model import zloop
 
     out: dict[RigCase, RigVerdict | None] = {}
     for item, spec in ((n, i.design) for n, i in opts.rubric.items.items() if i.design is not None):
@@ -152,7 +152,7 @@ def rig_prepass(subs: list[Read], keys: list[KeyContext | str | None], opts: Gra
                 ans = read_design(sub.answers[item], item=item, gain_unit=kc.unit("Kp_crit"))
             except (AnswerError, GraderError, TypeError):
                 continue
-            if fastloop.is_stable(kc.params(), ans.gains):
+            if zloop.is_stable(kc.params(), ans.gains):
                 cases.append(RigCase(kc.key.station, item, ans.gains))
         unique = sorted(set(cases), key=lambda c: (c.station, c.gains.Kp, c.gains.Ki, c.gains.Kd))
         threshold = quantity_to_float(spec.limit_cycle, "in")

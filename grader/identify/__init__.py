@@ -8,10 +8,10 @@ from grader.identify.friction import FrictionFit
 from grader.identify.oscillation import OscillationFit
 from grader.identify.pipeline import Identification, command_start, identify
 from grader.identify.pot import PotCalibration
-from grader.identify.predict import NO_OVERSHOOT, gain_for_overshoot, gain_no_overshoot, overshoot, predictions
+from grader.identify.predict import predictions
 
 __all__ = [
-    "NO_OVERSHOOT", "Estimate", "FlowGainFit", "FrictionFit", "Identification", "OscillationFit", "PotCalibration",
-    "coefficient_match", "command_start", "gain_for_overshoot", "gain_no_overshoot", "identify", "match_sampled_poles",
-    "overshoot", "predictions", "propagate",
+    "Estimate", "FlowGainFit", "FrictionFit", "Identification", "OscillationFit", "PotCalibration",
+    "coefficient_match", "command_start", "identify", "match_sampled_poles",
+    "predictions", "propagate",
 ]

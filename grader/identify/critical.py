@@ -20,7 +20,7 @@ from scipy.optimize import least_squares
 
 from grader.errors import IdentificationError
 from grader.model.params import Controller, RigParams
-from grader.model.sampled import discrete_poles
+from grader.model import zloop
 
 
 def coefficient_match(*, omega: float, kp_crit: float, A: float, M: float, Kamp: float, Kq: float,
@@ -43,7 +43,7 @@ def match_sampled_poles(p0: RigParams, *, kp: float, sigma: float, omega: float)
 
     def resid(x: np.ndarray) -> np.ndarray:
         p = p0.with_(beta_over_Vt=float(np.exp(x[0])), Kce=float(np.exp(x[1])))
-        z = discrete_poles(p, Controller(Kp=kp))
+        z = np.roots(zloop.closed_loop(p, Controller(Kp=kp))[1])
         zc = z[np.argmin(np.abs(z - target))]
         return np.array([(np.log(abs(zc)) - sigma * T) / T / omega, (np.angle(zc) - omega * T) / T / omega]) * 100
 

@@ -35,13 +35,11 @@ def propagate(
     se: Mapping[str, float],
     *,
     rel_step: float = 1e-4,
-    central: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Delta method for independent inputs: (f(x), standard errors of each output).
 
-    ``f`` maps named inputs to a vector of outputs; central (or, for costly ``f``,
-    forward) differences with a step of ``rel_step`` times each input's magnitude
-    (or its se if smaller).
+    ``f`` maps named inputs to a vector of outputs; central differences with a step of
+    ``rel_step`` times each input's magnitude (or its se if smaller).
     """
     y0 = np.asarray(f(x), dtype=float)
     var = np.zeros_like(y0)
@@ -50,9 +48,6 @@ def propagate(
             continue
         h = min(abs(x[name]) * rel_step or rel_step, s)
         up = np.asarray(f({**x, name: x[name] + h}), dtype=float)
-        if central:
-            dn, step = np.asarray(f({**x, name: x[name] - h}), dtype=float), 2 * h
-        else:
-            dn, step = y0, h
-        var += ((up - dn) / step * s) ** 2
+        dn = np.asarray(f({**x, name: x[name] - h}), dtype=float)
+        var += ((up - dn) / (2 * h) * s) ** 2
     return y0, np.sqrt(var)

@@ -1,56 +1,30 @@
 """Predictions from an identified model, as the lab asks for them.
 
-Overshoot-based gains use the sampled loop's step response (the rig is digital):
-``Kp_no_overshoot`` is the largest P gain whose overshoot stays below
-:data:`NO_OVERSHOOT` (0.5 %, the smallest a student can read off a plot), and
-``Kp_25_overshoot`` the gain giving 25 % overshoot.
+Overshoot-based gains use the sampled loop's step response (the rig is digital, see
+:mod:`grader.model.zloop`): ``Kp_no_overshoot`` is the largest P gain whose overshoot
+stays below :data:`~grader.model.zloop.NO_OVERSHOOT` (0.5 %), and ``Kp_25_overshoot``
+the gain giving 25 % overshoot.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
-import control as ct
 import numpy as np
-from scipy.optimize import brentq
 
 from grader.datasets import Run
 from grader.errors import IdentificationError
 from grader.identify.critical import match_sampled_poles
 from grader.identify.estimate import Estimate, propagate
 from grader.identify.pipeline import Identification
+from grader.model import zloop
 from grader.model.linear import ramp_error
-from grader.model.params import Controller, RigParams
-from grader.model.sampled import discrete_critical_gain, discrete_loop
-
-NO_OVERSHOOT = 0.005
 
 
-def overshoot(p: RigParams, kp: float, *, duration: float = 4.0) -> float:
-    """Fractional step overshoot of the sampled P loop at gain ``kp``."""
-    y_r, _ = discrete_loop(p, Controller(Kp=kp))
-    n = int(duration / p.sample_time)
-    y = ct.step_response(y_r, T=np.arange(n) * p.sample_time).outputs
-    return float(max(y.max() - 1.0, 0.0))
-
-
-def gain_for_overshoot(p: RigParams, target: float, *, k_crit: float | None = None) -> float:
-    """P gain whose sampled step response overshoots by ``target`` (fraction)."""
-    k_crit = k_crit or discrete_critical_gain(p)
-    hi = 0.995 * k_crit
-    if overshoot(p, hi) < target:
-        raise IdentificationError(f"{100 * target:.1f} % overshoot is not reachable below the critical gain")
-    return float(brentq(lambda k: overshoot(p, k) - target, 1e-3 * k_crit, hi, xtol=1e-6 * k_crit))
-
-
-def gain_no_overshoot(p: RigParams, *, k_crit: float | None = None) -> float:
-    """Largest P gain with overshoot below :data:`NO_OVERSHOOT`."""
-    return gain_for_overshoot(p, NO_OVERSHOOT, k_crit=k_crit)
-
-
-def critical_gain_sampled(p: RigParams) -> float:
-    """Critical P gain of the sampled loop."""
-    return discrete_critical_gain(p)
+def _required(value: float | None, what: str) -> float:
+    if value is None:
+        raise IdentificationError(f"the identified model never reaches {what} below its critical gain")
+    return value
 
 
 def _ramp_rate(run: Run) -> float:
@@ -73,13 +47,14 @@ def predictions(ident: Identification) -> dict[str, Estimate]:
 
     def evaluate(v: Mapping[str, float]) -> list[float]:
         p = match_sampled_poles(base.with_(Kq=v["Kq"], Kpot=v["Kpot"]), kp=ident.kp_run, sigma=v["growth_rate"], omega=v["omega_crit"])
-        kc = critical_gain_sampled(p)
-        out = [p.beta_over_Vt, p.Kce, kc, gain_no_overshoot(p, k_crit=kc), gain_for_overshoot(p, 0.25, k_crit=kc)]
+        out = [p.beta_over_Vt, p.Kce, zloop.critical_gain(p),
+               _required(zloop.gain_no_overshoot(p), "a step response without overshoot"),
+               _required(zloop.gain_for_overshoot(p, 0.25), "25 % overshoot")]
         if p_ramps:
             out.append(ramp_error(p, p_ramps[0].controller.Kp, _ramp_rate(p_ramps[0])))
         return out
 
-    values, ses = propagate(evaluate, x, se, central=False)
+    values, ses = propagate(evaluate, x, se)
     gain_unit = "dimensionless" if ds.manifest.feedback == "volts" else "V/in"
     inputs = {"Kp_run": ident.kp_run, "sample_time [s]": base.sample_time}
     sampled = "sampled loop (ZOH at the manifest's sample time)"
@@ -87,7 +62,7 @@ def predictions(ident: Identification) -> dict[str, Estimate]:
         "beta_over_Vt_model": Estimate(values[0], "psi/in**3", ses[0], "sampled-loop poles placed at the measured σ ± jω", inputs),
         "Kce_model": Estimate(values[1], "in**3/s/psi", ses[1], "sampled-loop poles placed at the measured σ ± jω", inputs),
         "Kp_crit_model": Estimate(values[2], gain_unit, ses[2], f"critical gain of the identified {sampled}", inputs),
-        "Kp_no_overshoot": Estimate(values[3], gain_unit, ses[3], f"largest gain with < {100 * NO_OVERSHOOT:g} % overshoot, {sampled}", inputs),
+        "Kp_no_overshoot": Estimate(values[3], gain_unit, ses[3], f"largest gain with < {100 * zloop.NO_OVERSHOOT:g} % overshoot, {sampled}", inputs),
         "Kp_25_overshoot": Estimate(values[4], gain_unit, ses[4], f"gain giving 25 % overshoot, {sampled}", inputs),
     }
     if p_ramps:

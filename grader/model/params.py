@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Literal
+from typing import Literal, Protocol
 
 from grader.errors import ModelError
 
@@ -72,6 +72,18 @@ class RigParams:
     def with_(self, **changes: float | str) -> RigParams:
         """A copy with some fields changed."""
         return replace(self, **changes)
+
+
+class Gains(Protocol):
+    """Anything hashable with PID gains (a :class:`Controller`, or a submitted design's gains)."""
+
+    @property
+    def Kp(self) -> float: ...  # noqa: N802
+    @property
+    def Ki(self) -> float: ...  # noqa: N802
+    @property
+    def Kd(self) -> float: ...  # noqa: N802
+    def __hash__(self) -> int: ...
 
 
 @dataclass(frozen=True, slots=True)

@@ -95,11 +95,11 @@ def test_discrete_critical_gain_is_below_continuous_and_close() -> None:
 
 
 def test_default_station_behaves_as_the_paper_describes(station) -> None:  # noqa: ANN001
-    from grader.identify import gain_for_overshoot, overshoot
+    from grader.model import zloop
 
     p = station.params()
-    k_crit = sampled.discrete_critical_gain(p)
-    assert overshoot(p, 10) < 1e-4  # Kp = 10 looks first order
+    k_crit = zloop.critical_gain(p)
+    assert zloop.overshoot(p, Controller(10)) < 1e-4  # Kp = 10 looks first order
     poles25 = linear.closed_loop_poles(p, Controller(25))
     real25 = poles25[np.abs(poles25.imag) < 1e-9][0].real
     pair25 = poles25[poles25.imag > 0][0]
@@ -107,5 +107,5 @@ def test_default_station_behaves_as_the_paper_describes(station) -> None:  # noq
     pair46 = linear.closed_loop_poles(p, Controller(46))
     pair46 = pair46[pair46.imag > 0][0]
     assert -pair46.real / abs(pair46) < 0.05  # lightly damped pair dominates at 46
-    assert gain_for_overshoot(p, 0.25, k_crit=k_crit) < k_crit  # 25 % overshoot reachable
+    assert zloop.gain_for_overshoot(p, 0.25) < k_crit  # 25 % overshoot reachable
     assert 50 < k_crit < 65

@@ -1,5 +1,5 @@
-"""A fast polynomial form of the sampled loop of :mod:`grader.model.sampled`, for checks
-run thousands of times (design checks, error carried forward on predictions).
+"""The sampled loop of :mod:`grader.model.sampled` in a fast polynomial form, for work run
+thousands of times (key predictions, design checks, error carried forward).
 
 Same loop: plant ``Kamp·X/I`` discretised with a zero-order hold, controller
 ``Kp + Ki·T·z/(z−1) + Kd·(z−1)/(T·z)`` on the error scaled by ``k_fb``. Here the
@@ -17,13 +17,13 @@ from numpy.typing import NDArray
 from scipy import signal
 from scipy.optimize import brentq
 
-from grader.grading.answers import Gains
-from grader.identify.predict import NO_OVERSHOOT
 from grader.model.linear import plant_coeffs
-from grader.model.params import RigParams
+from grader.model.params import Controller, Gains, RigParams
 
 Poly = NDArray[np.float64]
 STEP_SECONDS = 4.0
+#: "No overshoot" means below 0.5 %, the smallest overshoot a student can read off a plot.
+NO_OVERSHOOT = 0.005
 
 
 @lru_cache(maxsize=256)
@@ -31,7 +31,13 @@ def plant_z(p: RigParams) -> tuple[Poly, Poly]:
     """(num, den) of ``Kamp·X/I`` in z, ZOH at ``p.sample_time``."""
     a2, a1, b0 = plant_coeffs(p)
     num, den, _ = signal.cont2discrete(([b0 * p.Kamp], [1.0, a2, a1, 0.0]), p.sample_time, method="zoh")
-    return np.ravel(num).astype(float), np.asarray(den, float)
+    return _frozen(np.ravel(num).astype(float)), _frozen(np.asarray(den, float))
+
+
+def _frozen(a: Poly) -> Poly:
+    """Cached arrays are shared: make them read-only."""
+    a.flags.writeable = False
+    return a
 
 
 def controller_z(g: Gains, T: float) -> tuple[Poly, Poly]:
@@ -54,13 +60,13 @@ def closed_loop(p: RigParams, g: Gains) -> tuple[Poly, Poly]:
     nc, dc = controller_z(g, p.sample_time)
     forward = p.k_fb * np.polymul(nc, ng)
     den = np.polyadd(np.polymul(dc, dg), forward)
-    return np.concatenate([np.zeros(den.size - forward.size), forward]), den
+    return _frozen(np.concatenate([np.zeros(den.size - forward.size), forward])), _frozen(den)
 
 
 @lru_cache(maxsize=8192)
-def is_stable(p: RigParams, g: Gains, *, margin: float = 1e-9) -> bool:
-    """All closed-loop poles strictly inside the unit circle."""
-    return bool(np.all(np.abs(np.roots(closed_loop(p, g)[1])) < 1.0 - margin))
+def is_stable(p: RigParams, g: Gains) -> bool:
+    """All closed-loop poles strictly inside the unit circle (by a margin of 1e-9)."""
+    return bool(np.all(np.abs(np.roots(closed_loop(p, g)[1])) < 1.0 - 1e-9))
 
 
 def response(p: RigParams, g: Gains, r: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -72,11 +78,11 @@ def response(p: RigParams, g: Gains, r: NDArray[np.float64]) -> NDArray[np.float
 
 
 @lru_cache(maxsize=8192)
-def overshoot(p: RigParams, g: Gains, seconds: float = STEP_SECONDS) -> float:
-    """Fractional step overshoot (inf when the loop is unstable)."""
+def overshoot(p: RigParams, g: Gains) -> float:
+    """Fractional overshoot of a :data:`STEP_SECONDS` step (inf when the loop is unstable)."""
     if not is_stable(p, g):
         return float("inf")
-    y = response(p, g, np.ones(int(seconds / p.sample_time)))
+    y = response(p, g, np.ones(int(STEP_SECONDS / p.sample_time)))
     return float(max(np.max(y) - 1.0, 0.0))
 
 
@@ -96,13 +102,13 @@ def ramp_error(p: RigParams, g: Gains, rate: float, seconds: float) -> float:
 def critical_gain(p: RigParams) -> float:
     """Smallest P gain at which the sampled loop reaches the unit circle (bisection)."""
     lo, hi = 0.0, 1.0
-    while is_stable(p, Gains(Kp=hi)):
+    while is_stable(p, Controller(Kp=hi)):
         lo, hi = hi, 2.0 * hi
         if hi > 1e9:
             return float("inf")
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if is_stable(p, Gains(Kp=mid)) else (lo, mid)
+        lo, hi = (mid, hi) if is_stable(p, Controller(Kp=mid)) else (lo, mid)
         if hi - lo < 1e-9 * hi:
             break
     return 0.5 * (lo + hi)
@@ -113,12 +119,12 @@ def gain_for_overshoot(p: RigParams, target: float) -> float | None:
     """P gain whose step overshoots by ``target`` (fraction); None when not reachable."""
     kc = critical_gain(p)
     hi = 0.995 * kc
-    f = lambda k: overshoot(p, Gains(Kp=k)) - target  # noqa: E731
+    f = lambda k: overshoot(p, Controller(Kp=k)) - target  # noqa: E731
     if not np.isfinite(kc) or f(hi) < 0 or f(1e-3 * kc) > 0:
         return None
     return float(brentq(f, 1e-3 * kc, hi, xtol=1e-6 * kc))
 
 
 def gain_no_overshoot(p: RigParams) -> float | None:
-    """Largest P gain with overshoot below :data:`grader.identify.predict.NO_OVERSHOOT`."""
+    """Largest P gain with overshoot below :data:`NO_OVERSHOOT`."""
     return gain_for_overshoot(p, NO_OVERSHOOT)
