@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from grader import __version__
 from grader.datasets import Dataset, load
@@ -41,22 +41,43 @@ class KeyEntry(BaseModel):
     inputs: dict[str, Any]
 
 
+class ModelBlock(BaseModel):
+    """The identified linear model, in the units of :data:`MODEL_UNITS`."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    A: float = Field(gt=0)
+    M: float = Field(gt=0)
+    Kamp: float = Field(gt=0)
+    Kq: float = Field(gt=0)
+    Kpot: float = Field(gt=0)
+    beta_over_Vt: float = Field(gt=0)
+    Kce: float = Field(ge=0)
+    B: float = Field(ge=0)
+    sample_time: float = Field(gt=0)
+    supply_pressure: float = Field(gt=0)
+    i_max: float = Field(gt=0)
+
+
 class Key(BaseModel):
     """An answer key file."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
-    schema_: str = SCHEMA
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+    schema_: Literal["grader.key/1"] = Field(default=SCHEMA, alias="schema")
     station: str
     dataset: str
-    feedback: str
+    feedback: Literal["volts", "inches"]
     generated_by: dict[str, str]
     inputs_sha256: str
-    model: dict[str, float]
+    model: ModelBlock
+    model_units: dict[str, str] = Field(default_factory=lambda: dict(MODEL_UNITS))
     quantities: dict[str, KeyEntry]
 
     def params(self) -> RigParams:
         """The identified linear model."""
-        return RigParams(feedback=self.feedback, **self.model)  # type: ignore[arg-type]
+        m = self.model
+        return RigParams(A=m.A, M=m.M, Kamp=m.Kamp, Kq=m.Kq, Kpot=m.Kpot, beta_over_Vt=m.beta_over_Vt, Kce=m.Kce,
+                         B=m.B, sample_time=m.sample_time, feedback=self.feedback,
+                         supply_pressure=m.supply_pressure, i_max=m.i_max)
 
     def value(self, item: str) -> Any:
         return self.quantities[item].value
@@ -87,7 +108,7 @@ def build_key(dataset: Dataset) -> Key:
     ident = identify(dataset)
     quantities = {name: _entry(e) for name, e in {**ident.estimates, **predictions(ident)}.items()}
     quantities["closed_loop_poles"] = _poles_entry(ident)
-    model = {name: _r(getattr(ident.params, name)) for name in MODEL_UNITS}
+    model = ModelBlock(**{name: _r(getattr(ident.params, name)) for name in MODEL_UNITS})
     return Key(
         station=dataset.manifest.station, dataset=dataset.root.name, feedback=dataset.manifest.feedback,
         generated_by={"package": "grader", "version": __version__}, inputs_sha256=dataset.inputs_sha256,
@@ -97,9 +118,7 @@ def build_key(dataset: Dataset) -> Key:
 
 def key_json(key: Key) -> str:
     """Canonical JSON text of ``key`` (sorted keys, two-space indent, trailing newline)."""
-    data = key.model_dump(mode="json", by_alias=False)
-    data["schema"] = data.pop("schema_")
-    data["model_units"] = MODEL_UNITS
+    data = key.model_dump(mode="json", by_alias=True)
     return json.dumps(data, indent=2, sort_keys=True, ensure_ascii=False) + "\n"
 
 
@@ -123,8 +142,6 @@ def read_key(path: str | Path) -> Key:
         raise KeyFileError(f"{path.name}: not valid JSON ({exc})") from None
     if not isinstance(data, dict) or data.get("schema") != SCHEMA:
         raise KeyFileError(f"{path.name}: not a grader key (schema must be {SCHEMA!r})")
-    data["schema_"] = data.pop("schema")
-    data.pop("model_units", None)
     try:
         return Key.model_validate(data)
     except ValidationError as exc:

@@ -65,3 +65,18 @@ def test_cli_key_writes_file_and_table(linear_dataset: Path, tmp_path: Path, cap
 def test_bad_key_files_raise(tmp_path: Path, text: str) -> None:
     with pytest.raises(KeyFileError):
         read_key(_write(tmp_path, text))
+
+
+@pytest.mark.parametrize(
+    ("change", "words"),
+    [
+        (lambda d: d["model"].update(foo=1.0), "model.foo"),
+        (lambda d: d["model"].update(M=-1.0), "model.M"),
+        (lambda d: d.update(feedback="mm"), "feedback"),
+    ],
+)
+def test_key_model_block_is_validated(change, words: str, tmp_path: Path) -> None:  # noqa: ANN001
+    data = json.loads((reference_dir() / "keys" / "default.json").read_text())
+    change(data)
+    with pytest.raises(KeyFileError, match=words):
+        read_key(_write(tmp_path, json.dumps(data)))

@@ -25,7 +25,7 @@ def _key_numbers(kc: KeyContext) -> set[str]:
             values.append(float(entry.value))
         elif name == "closed_loop_poles":
             values += [abs(x) for run in entry.value for pole in run["poles"] for x in pole]
-    values += [v for v in kc.key.model.values()]
+    values += list(kc.key.model.model_dump().values())
     out = set()
     for v in values:
         if v == 0 or float(v).is_integer():

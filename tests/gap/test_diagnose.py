@@ -1,0 +1,105 @@
+"""The diagnosis end to end: known effects are named and sized, clean data get 'none', outputs are stable."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+import jsonschema
+import pytest
+
+from grader.gap.diagnose import Analysis, analyse, diagnose_dataset
+from grader.gap.report import write_outputs
+from grader.gap.schema import Diagnosis, diagnosis_json, json_schema
+
+from .conftest import FEW, MakeDataset
+
+Analysed = Callable[..., Analysis]
+FRICTION = {"coulomb_friction": {"Fc": 2.0}}
+
+
+@pytest.mark.parametrize(("effect", "param", "value"), [
+    ("coulomb_friction", "Fc", 2.0),
+    ("sampling_delay", "delay", 0.0015),
+])
+def test_known_effect_is_named_and_sized(analysed: Analysed, effect: str, param: str, value: float) -> None:
+    d = analysed(effect, {effect: {param: value}}).diagnosis
+    assert d.verdict.effect == effect
+    best = d.candidates[0]
+    assert best.effect == effect
+    assert best.params[param].value == pytest.approx(value, rel=0.1)
+    lo, hi = best.params[param].interval or (0.0, 0.0)
+    assert lo <= best.params[param].value <= hi
+    assert best.shrink > 0.7
+    assert d.verdict.margin > 0 and d.verdict.confidence > 0.8
+
+
+def test_clean_dataset_gets_none(analysed: Analysed) -> None:
+    d = analysed("clean").diagnosis
+    assert d.verdict.effect == "none"
+    assert d.candidates[0].effect == "none"
+    # the re-fitted linear model predicts left-out runs to within twice the noise
+    assert d.candidates[0].heldout_nrmse_after < 2 * max(g.noise_nrmse for g in d.gap.by_run)
+
+
+def test_json_validates_against_its_schema_and_carries_the_contract(analysed: Analysed) -> None:
+    d = analysed("coulomb_friction", FRICTION).diagnosis
+    data = json.loads(diagnosis_json(d))
+    jsonschema.validate(data, json_schema())
+    assert Diagnosis.model_validate(data) == d
+    assert data["schema"] == "grader.diagnosis/1"
+    assert {"effect", "margin"} <= set(data["verdict"])
+    for run in data["gap"]["by_run"]:
+        assert {"run", "nrmse", "segments"} <= set(run)
+        assert sum(s["share"] for s in run["segments"]) == pytest.approx(1.0, abs=1e-4)
+    for c in data["candidates"]:
+        assert {"effect", "params", "heldout_nrmse_before", "heldout_nrmse_after", "shrink"} <= set(c)
+        for p in c["params"].values():
+            assert {"value", "unit", "interval"} <= set(p)
+    scores = [c["score"] for c in data["candidates"][1:]]
+    assert scores == sorted(scores)  # best first (the verdict leads)
+
+
+def test_segments_and_readoffs_are_the_documented_ones(analysed: Analysed) -> None:
+    d = analysed("clean").diagnosis
+    kinds = {g.run: [s.segment for s in g.segments] for g in d.gap.by_run}
+    assert kinds["step_kp46"] == ["rise", "overshoot", "settling", "steady_state"]
+    assert kinds["ramp_p"] == ["tracking"] and kinds["instability"] == ["oscillation"]
+    quantities = {(r.quantity, r.run) for r in d.readoffs}
+    assert {("overshoot", "step_kp46"), ("steady_state_error", "ramp_p"), ("oscillation_frequency", "instability"),
+            ("critical_gain", "instability")} <= quantities
+
+
+def test_outputs_are_byte_identical_for_the_same_input(analysed: Analysed, make: MakeDataset, tmp_path: Path) -> None:
+    first = analysed("coulomb_friction", FRICTION)
+    again = analyse(make("coulomb_friction", FRICTION), effects=FEW, parallel=False)
+    assert diagnosis_json(again.diagnosis) == diagnosis_json(first.diagnosis)
+    write_outputs(first, tmp_path / "a")
+    write_outputs(again, tmp_path / "b")
+    for name in ("report.html", "candidates.png", "run_step_kp10.png"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+
+
+def test_diagnose_dataset_writes_report_and_plots(make: MakeDataset, tmp_path: Path) -> None:
+    d = diagnose_dataset(make("clean"), out=tmp_path, effects=["valve_saturation"])
+    assert d.verdict.effect == "none"
+    html = (tmp_path / "report.html").read_text(encoding="utf-8")
+    assert "data:image/png;base64," in html and "Where the gap lies" in html
+    assert json.loads((tmp_path / "diagnosis.json").read_text(encoding="utf-8"))["verdict"]["effect"] == "none"
+    assert len(list(tmp_path.glob("run_*.png"))) == 6
+
+
+def test_without_static_files_the_loop_is_identified_from_the_runs(make: MakeDataset, tmp_path: Path) -> None:
+    root = tmp_path / "ds"
+    shutil.copytree(make("coulomb_friction", FRICTION), root)
+    manifest = json.loads((root / "manifest.json").read_text(encoding="utf-8"))
+    for name in ("calibration", "flow_test", "friction"):
+        manifest.pop(name)
+    (root / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
+    d = analyse(root, effects=["coulomb_friction", "valve_deadband"]).diagnosis
+    assert d.baseline.source == "runs"
+    assert d.baseline.params["Kpot"].value == pytest.approx(0.85, rel=0.01)  # from the recorded u
+    assert d.verdict.effect == "coulomb_friction"
+    assert d.candidates[0].params["Fc"].value == pytest.approx(2.0, rel=0.1)

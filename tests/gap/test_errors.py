@@ -1,0 +1,73 @@
+"""Bad datasets get one clear line naming what is wrong (exit code 2, no traceback)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from grader.cli import main
+
+Edit = Callable[[Path], None]
+
+
+def _manifest(edit: Callable[[dict], None]) -> Edit:
+    def apply(root: Path) -> None:
+        path = root / "manifest.json"
+        data = json.loads(path.read_text(encoding="utf-8"))
+        edit(data)
+        path.write_text(json.dumps(data), encoding="utf-8")
+
+    return apply
+
+
+def _no_runs(data: dict) -> None:
+    data["runs"] = []
+
+
+def _wrong_gain(data: dict) -> None:
+    next(r for r in data["runs"] if r["name"] == "step_kp25")["controller"]["Kp"] = 46
+
+
+def _slow_clock(data: dict) -> None:
+    data["given"]["sample_time"] = "2 ms"
+
+
+def _short_run(root: Path) -> None:
+    path = root / "step_kp10.csv"
+    lines = path.read_text(encoding="utf-8").splitlines()
+    path.write_text("\n".join(lines[:60]) + "\n", encoding="utf-8")
+
+
+@pytest.mark.parametrize(("edit", "expected"), [
+    (_manifest(_no_runs), "lists no runs"),
+    (_short_run, "run step_kp10 (step_kp10.csv): only"),
+    (_manifest(_wrong_gain), "run step_kp25: the manifest gives Kp = 46"),
+    (_manifest(_slow_clock), "not evenly at the manifest's sample_time of 2 ms"),
+])
+def test_bad_dataset_gets_a_clear_error(linear_dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                       edit: Edit, expected: str) -> None:
+    root = tmp_path / "ds"
+    shutil.copytree(linear_dataset, root)
+    edit(root)
+    assert main(["diagnose", str(root), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("grader diagnose: error: ") and expected in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_wrong_gain_message_gives_the_gain_the_data_imply(linear_dataset: Path, tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    root = tmp_path / "ds"
+    shutil.copytree(linear_dataset, root)
+    _manifest(_wrong_gain)(root)
+    main(["diagnose", str(root)])
+    assert "Kp ≈ 25" in capsys.readouterr().err
+
+
+def test_unknown_candidate_effect_is_refused(linear_dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["diagnose", str(linear_dataset), "--effects", "coulomb_fricton"]) == 2
+    assert "unknown candidate(s) coulomb_fricton" in capsys.readouterr().err

@@ -1,0 +1,111 @@
+"""Segments, noise floor and verdict rules on constructed inputs."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from grader.gap.noise import adc_step, estimate, reading_noise
+from grader.gap.runs import GapRun
+from grader.gap.segments import segments_of, shares
+from grader.gap.verdict import Scored, rank
+from grader.model.params import Controller
+
+T = 0.001
+
+
+def _step_run(zeta: float, wn: float = 40.0, sigma: float = 0.0, seed: int = 0) -> GapRun:
+    """A second-order step response of 0.2 in starting at 0.1 s."""
+    t = np.arange(0.0, 1.5, T)
+    tau = np.clip(t - 0.1, 0.0, None)
+    if zeta < 1:
+        wd = wn * np.sqrt(1 - zeta**2)
+        x = 1 - np.exp(-zeta * wn * tau) * (np.cos(wd * tau) + zeta / np.sqrt(1 - zeta**2) * np.sin(wd * tau))
+    else:
+        x = 1 - (1 + wn * tau) * np.exp(-wn * tau)
+    y = 0.2 * x + np.random.default_rng(seed).normal(0.0, sigma, t.size)
+    r = np.where(t >= 0.1, 0.2, 0.0)
+    return GapRun("s", "step", Controller(10), t, r, y, None, 0.1, float(np.std(y)), np.zeros(t.size))
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(0.1, 1.5), st.floats(15.0, 80.0))
+def test_step_segments_tile_the_run_in_order(zeta: float, wn: float) -> None:
+    run = _step_run(zeta, wn)
+    segs = segments_of(run, 0.0004)
+    assert [s.name for s in segs] == ["rise", "overshoot", "settling", "steady_state"]
+    assert segs[0].i0 == 0 and segs[-1].i1 == run.n
+    assert all(a.i1 == b.i0 and a.i0 <= a.i1 for a, b in itertools.pairwise(segs))
+    res = np.random.default_rng(1).normal(size=run.n)
+    assert sum(shares(res, segs)) == pytest.approx(1.0)
+
+
+def test_overshoot_segment_exists_only_when_the_response_overshoots() -> None:
+    under = {s.name: s for s in segments_of(_step_run(0.3), 0.0004)}
+    over = {s.name: s for s in segments_of(_step_run(1.2), 0.0004)}
+    assert under["overshoot"].i1 > under["overshoot"].i0
+    assert over["overshoot"].i1 == over["overshoot"].i0
+    # a lightly damped response reaches 90 % in its first swing: rise ends well before the 2 % band
+    assert under["rise"].i1 < under["settling"].i1
+
+
+@pytest.mark.parametrize("sigma", [0.0002, 0.0005, 0.002])
+def test_reading_noise_recovers_the_noise_of_a_moving_signal(sigma: float) -> None:
+    run = _step_run(0.5, sigma=sigma, seed=3)
+    assert reading_noise(run.y) == pytest.approx(sigma, rel=0.05)
+
+
+def test_adc_step_finds_the_lattice_and_only_a_lattice() -> None:
+    run = _step_run(0.5, sigma=0.0004, seed=4)
+    q = 20.0 / 2**12 / 0.85  # 12-bit ADC over ±10 V, Kpot 0.85 V/in
+    assert adc_step(np.round(run.y / q) * q) == pytest.approx(q, rel=1e-6)
+    assert adc_step(run.y) is None
+
+
+def _scored(effect: str, heldout: float, fit: float, k: int = 1, strength: float = 0.5) -> Scored:
+    return Scored(effect, np.full(6, heldout), np.full(6, fit), k, strength)
+
+
+NOISE = np.full(6, 0.01)
+
+
+def test_a_clear_effect_wins_with_a_positive_margin() -> None:
+    cands = [_scored("none", 0.2, 0.2, 0, 0.0), _scored("coulomb_friction", 0.012, 0.011), _scored("valve_deadband", 0.05, 0.04)]
+    rk = rank(cands, NOISE)
+    assert cands[rk.verdict].effect == "coulomb_friction"
+    assert rk.margin == pytest.approx(np.log(0.05**2 / 0.012**2), rel=1e-6)
+    assert rk.confidence == 1.0 and rk.ties == []
+
+
+def test_an_effect_that_fits_no_better_than_none_is_not_a_verdict() -> None:
+    # better held-out by luck of the folds, but the fit on all runs gains nothing: none
+    cands = [_scored("none", 0.012, 0.010, 0, 0.0), _scored("viscous_friction", 0.009, 0.010, strength=0.4)]
+    rk = rank(cands, NOISE)
+    assert cands[rk.verdict].effect == "none"
+    assert rk.margin >= 0
+    assert [cands[i].effect for i in rk.ties] == ["viscous_friction"]  # fitted visibly, explains nothing
+
+
+def test_near_equal_effects_are_reported_as_indistinguishable() -> None:
+    cands = [_scored("none", 0.2, 0.2, 0, 0.0), _scored("sampling_delay", 0.0200, 0.02), _scored("valve_dynamics", 0.0203, 0.02)]
+    rk = rank(cands, NOISE)
+    assert cands[rk.verdict].effect == "sampling_delay"
+    assert [cands[i].effect for i in rk.ties] == ["valve_dynamics"]
+
+
+@pytest.mark.parametrize("bits", [12, 14])
+def test_noise_floor_covers_the_quantisation_error(bits: int) -> None:
+    q = 20.0 / 2**bits / 0.85
+    runs = []
+    for seed in range(3):
+        run = _step_run(0.5, sigma=0.0004, seed=seed)
+        runs.append(GapRun(run.name, "step", run.controller, run.t, run.r, np.round(run.y / q) * q, None, run.start,
+                           run.scale, run.noise))
+    noise = estimate(runs)
+    assert noise.adc_step == pytest.approx(q, rel=1e-6)
+    # a perfect model still misses the readings by the RMS quantisation error, dithered or not
+    assert noise.floor == pytest.approx(np.sqrt(0.0004**2 + q**2 / 12), rel=0.35)
