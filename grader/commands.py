@@ -43,8 +43,8 @@ def _demo(args: argparse.Namespace) -> int:
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("key", help="build the answer key from a lab dataset folder")
     p.add_argument("dataset", help="lab dataset folder (manifest.json + CSV files)")
-    p.add_argument("-o", "--output", default="key.json", help="key file to write (default: key.json)")
+    p.add_argument("-o", "--out", "--output", dest="output", default="key.json", help="key file to write (default: key.json)")
     p.set_defaults(handler=_key)
     p = sub.add_parser("demo", help="run the main job end to end on the embedded default station")
-    p.add_argument("--out", default="grader-demo", help="folder for the demo's outputs (default: grader-demo)")
+    p.add_argument("-o", "--out", default="grader-demo", help="folder for the demo's outputs (default: grader-demo)")
     p.set_defaults(handler=_demo)

@@ -49,7 +49,10 @@ def run_demo(out: Path) -> int:
     failed = []
     for title, argv in _steps(out):
         console.print(Rule(f"[bold]{title}[/bold]"))
-        console.print(f"$ grader {' '.join(_short(a) for a in argv)}", style="dim")
+        shown = [_short(a) for a in argv]
+        if argv[0] == "grade":
+            shown[1:-3] = [shown[1], f"… ({len(argv) - 4} example submissions)"]
+        console.print(f"$ grader {' '.join(shown)}", style="dim")
         if main(argv) != 0:
             failed.append(argv[0])
     console.print(Rule("[bold]Done[/bold]"))

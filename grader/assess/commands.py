@@ -50,12 +50,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "Cronbach's alpha, Friedman/Wilcoxon comparisons across labs, hours and free text.",
     )
     survey.add_argument("responses", type=Path, metavar="RESPONSES", help="CSV or XLSX file of responses")
-    survey.add_argument("--out", type=Path, required=True, metavar="DIR", help="folder for the report files")
+    survey.add_argument("-o", "--out", type=Path, required=True, metavar="DIR", help="folder for the report files")
     survey.add_argument("--mapping", type=Path, metavar="YAML", help=_MAPPING_HELP)
     survey.set_defaults(handler=_survey)
 
     template = subparsers.add_parser("survey-template", help="write a blank survey template (.csv or .xlsx)")
-    template.add_argument("--out", type=Path, required=True, metavar="FILE", help="template file to write")
+    template.add_argument("-o", "--out", type=Path, required=True, metavar="FILE", help="template file to write")
     template.add_argument("--mapping", type=Path, metavar="YAML", help=_MAPPING_HELP)
     template.set_defaults(handler=_survey_template)
 
@@ -65,9 +65,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "per problem and overall, with item analysis and a power analysis.",
     )
     exam.add_argument("scores", type=Path, metavar="SCORES", help="CSV or XLSX, one row per student")
-    exam.add_argument("--out", type=Path, required=True, metavar="DIR", help="folder for the report files")
+    exam.add_argument("-o", "--out", type=Path, required=True, metavar="DIR", help="folder for the report files")
     exam.set_defaults(handler=_exam)
 
     exam_template = subparsers.add_parser("exam-template", help="write a blank exam-score template (.csv or .xlsx)")
-    exam_template.add_argument("--out", type=Path, required=True, metavar="FILE", help="template file to write")
+    exam_template.add_argument("-o", "--out", type=Path, required=True, metavar="FILE", help="template file to write")
     exam_template.set_defaults(handler=_exam_template)

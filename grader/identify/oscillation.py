@@ -36,6 +36,14 @@ def _fft_peak(t: NDArray[np.float64], x: NDArray[np.float64]) -> float:
     return float(freqs[int(np.argmax(spec))])
 
 
+def _ar1_inflation(resid: NDArray[np.float64]) -> float:
+    """Standard-error inflation for residuals correlated from sample to sample (AR(1)):
+    sqrt((1 + ρ)/(1 − ρ)) with ρ the lag-1 autocorrelation (1 for white residuals)."""
+    rho = float(np.corrcoef(resid[:-1], resid[1:])[0, 1]) if resid.size > 3 else 0.0
+    rho = min(max(rho, 0.0), 0.99) if np.isfinite(rho) else 0.0
+    return float(np.sqrt((1 + rho) / (1 - rho)))
+
+
 class OscillationFit:
     """Learned: ``omega_`` [rad/s] and ``sigma_`` [1/s] (growth rate) as Estimates,
     ``window_`` (t0, t1) [s] used for the fit."""
@@ -70,7 +78,7 @@ class OscillationFit:
         assert best is not None
         dof = tw.size - 6
         cov = float(best.fun @ best.fun / dof) * np.linalg.pinv(best.jac.T @ best.jac)
-        se = np.sqrt(np.diag(cov))
+        se = np.sqrt(np.diag(cov)) * _ar1_inflation(best.fun)
         if abs(best.x[3] - w0) > 0.25 * w0:
             raise IdentificationError("instability run: the oscillation is not a clean sinusoid (fit did not converge)")
         note = {"window_start [s]": float(tw[0]), "window_end [s]": float(tw[-1]), "fft_peak [Hz]": f0}

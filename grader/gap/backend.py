@@ -1,0 +1,68 @@
+"""Batched simulation of model points on the dataset's runs.
+
+A :class:`Point` is one model (linear parameters plus an :class:`EffectSet`). A request
+``(point, run index)`` asks for that model's position x_k [in] on that run, with the
+model's controller reading x_k plus the run's estimated reading noise. All requests go
+through one call of the exact-ZOH rig model (:mod:`grader.gap.fastsim`), whatever their
+number: its Python loop runs over time only (two loops, one of them in a forked worker
+process when :func:`worker` provides one: the diagnosis uses two cores). Known hardware limits (DAC ±10 V,
+amplifier ±i_max) are part of every model, as they are of the rig.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Executor, ProcessPoolExecutor
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from grader.gap import fastsim
+from grader.gap.runs import GapRun
+from grader.model.effects import EffectSet
+from grader.model.params import RigParams
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Point:
+    """One model: linear parameters and unmodelled effects."""
+
+    params: RigParams
+    effects: EffectSet = field(default_factory=EffectSet)
+
+
+@contextmanager
+def worker(enabled: bool = True) -> Iterator[Executor | None]:
+    """One forked worker process for the simulator's second loop, where fork and a second core exist."""
+    if not enabled or "fork" not in mp.get_all_start_methods() or (os.cpu_count() or 1) < 2:
+        yield None
+        return
+    with ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("fork")) as ex:
+        yield ex
+
+
+class Backend:
+    """Simulates requests (see module docstring)."""
+
+    def __init__(self, runs: Sequence[GapRun], *, executor: Executor | None = None) -> None:
+        self.runs = list(runs)
+        self.executor = executor
+
+    def __call__(self, requests: Sequence[tuple[Point, int]]) -> list[Array]:
+        """x_k [in] for each request, in order."""
+        runs = [self.runs[i] for _, i in requests]
+        return fastsim.simulate([pt.params for pt, _ in requests], [r.controller for r in runs],
+                                [pt.effects for pt, _ in requests], [r.r for r in runs], [r.noise for r in runs],
+                                executor=self.executor)
+
+    def all_runs(self, points: Sequence[Point]) -> list[list[Array]]:
+        """x for every point on every run: ``result[p][i]``."""
+        n = len(self.runs)
+        flat = self([(pt, i) for pt in points for i in range(n)])
+        return [flat[k * n:(k + 1) * n] for k in range(len(points))]

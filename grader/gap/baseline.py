@@ -1,0 +1,158 @@
+"""The linear model the diagnosis starts from.
+
+In order of preference:
+
+1. ``key``: the model of an answer key (``--key``), at the manifest's sample time.
+2. ``identified``: the students' full procedure (:func:`grader.identify.identify`) when
+   the dataset has the calibration, flow-test and friction files and an instability run.
+3. ``runs``: identified from the runs themselves. The closed loop depends only on
+   products (g = 4β/Vt; a₂ = g·Kce, a₁ = g·A²/M, a₀/Kp = Kamp·k_fb·g·Kq·A/M), so
+   β/Vt, Kce and the loop gain Kq·k_fb are fitted to the runs (the linear part of each
+   run, before the amplifier or DAC limit) starting from the instability run's
+   oscillation as the students read it. Kpot comes from the calibration file, else from
+   the recorded controller output u; Kq from the flow test, else it is fitted (nominal
+   start: rated flow ÷ rated current, the paper's 0.5 gpm at 50 mA).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+
+from grader.datasets import Dataset
+from grader.errors import DiagnosisError, GraderError, IdentificationError
+from grader.gap import linsim
+from grader.gap.runs import GapRun, control_law
+from grader.identify import (
+    FlowGainFit,
+    OscillationFit,
+    PotCalibration,
+    coefficient_match,
+    identify,
+    match_sampled_poles,
+)
+from grader.keys import read_key
+from grader.model.params import RigParams
+from grader.model.rig_setup import DAC_LIMIT
+
+Array = NDArray[np.float64]
+RATED_FLOW = 0.5 * 231.0 / 60.0  # 0.5 gpm [in³/s]
+TYPICAL = {"beta_over_Vt": 2.0e4, "Kce": 7.0e-4}
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """The linear model, where it came from, and notes for the report."""
+
+    params: RigParams
+    source: str
+    method: str
+    notes: tuple[str, ...] = ()
+
+
+def _given_params(ds: Dataset, Kq: float, Kpot: float, bv: float, kce: float) -> RigParams:
+    g = ds.given
+    return RigParams(A=g["A"], M=g["M"], Kamp=g["Kamp"], Kq=Kq, Kpot=Kpot, beta_over_Vt=bv, Kce=kce, B=0.0,
+                     sample_time=g["sample_time"], feedback=ds.manifest.feedback,
+                     supply_pressure=g["supply_pressure"], i_max=g["i_max"])
+
+
+def from_key(path: str | Path, ds: Dataset) -> Baseline:
+    """The key's model at the manifest's sample time and limits."""
+    key = read_key(path)
+    if key.feedback != ds.manifest.feedback:
+        raise DiagnosisError(f"{Path(path).name}: the key uses '{key.feedback}' feedback but the dataset '{ds.manifest.feedback}'")
+    g = ds.given
+    p = key.params().with_(sample_time=g["sample_time"], i_max=g["i_max"], supply_pressure=g["supply_pressure"])
+    return Baseline(p, "key", f"answer key {Path(path).name} (station {key.station})")
+
+
+def _linear_part(run: GapRun, p: RigParams) -> int:
+    """Samples before the controller output first nears the DAC or amplifier limit."""
+    u = run.u if run.u is not None else control_law(run.controller, p.k_fb * (run.r - run.y), p.sample_time)
+    limit = 0.9 * min(DAC_LIMIT, p.i_max / p.Kamp)
+    over = np.flatnonzero(np.abs(u) >= limit)
+    return int(over[0]) if over.size else run.n
+
+
+def _start_from_oscillation(runs: Sequence[GapRun], p: RigParams) -> tuple[RigParams, str]:
+    """β/Vt and Kce from the instability run, as the students do (else typical values)."""
+    inst = [r for r in runs if r.kind == "instability"]
+    if not inst:
+        return p, "typical β/Vt and Kce (no instability run)"
+    run = inst[0]
+    try:
+        osc = OscillationFit().fit(run.t, run.y, start=run.start)
+        bv, kce = coefficient_match(omega=osc.omega_.value, kp_crit=run.controller.Kp, A=p.A, M=p.M, Kamp=p.Kamp,
+                                    Kq=p.Kq, k_fb=p.k_fb)
+        p = match_sampled_poles(p.with_(beta_over_Vt=bv, Kce=kce), kp=run.controller.Kp, sigma=osc.sigma_.value,
+                                omega=osc.omega_.value)
+    except (IdentificationError, GraderError):
+        return p, "typical β/Vt and Kce (the instability run shows no clean oscillation)"
+    return p, f"oscillation of run {run.name} at Kp = {run.controller.Kp:g}"
+
+
+def fit_loop(runs: Sequence[GapRun], p0: RigParams, *, fit_kq: bool) -> RigParams:
+    """Least squares of the linear loop on the runs' linear parts: ln β/Vt, ln Kce (and ln Kq)."""
+    spans = [_linear_part(r, p0) for r in runs]
+
+    def model(x: Array) -> RigParams:
+        kq = p0.Kq * np.exp(x[2]) if fit_kq else p0.Kq
+        return p0.with_(beta_over_Vt=p0.beta_over_Vt * np.exp(x[0]), Kce=p0.Kce * np.exp(x[1]), Kq=float(kq))
+
+    def resid(x: Array) -> Array:
+        p = model(x)
+        parts = []
+        for run, n in zip(runs, spans):
+            if n < 20:
+                continue
+            y = linsim.simulate_grid(p, run.controller, run.r[:n])
+            parts.append((y - run.y[:n]) / (run.scale * np.sqrt(n)))
+        return np.concatenate(parts) if parts else np.zeros(1)
+
+    res = least_squares(resid, np.zeros(3 if fit_kq else 2), method="lm", x_scale=1.0)
+    return model(res.x)
+
+
+def from_runs(ds: Dataset, runs: Sequence[GapRun], implied_kfb: float | None) -> Baseline:
+    """The loop identified from the runs (see module docstring)."""
+    notes = []
+    volts = ds.manifest.feedback == "volts"
+    if ds.calibration is not None:
+        kpot = PotCalibration().fit(ds.calibration["position"], ds.calibration["voltage"]).Kpot_.value
+    elif volts and implied_kfb is not None:
+        kpot = implied_kfb
+        notes.append("no calibration file: Kpot taken from the recorded controller output u")
+    else:
+        kpot = 1.0
+        if volts:
+            notes.append("no calibration file and no u column: Kpot set to 1 V/in; only Kpot·Kq is identified")
+    if ds.flow_test is not None:
+        kq = FlowGainFit(Kamp=ds.given["Kamp"]).fit(ds.flow_test["input"], ds.flow_test["flow"]).Kq_.value
+    else:
+        kq = RATED_FLOW / ds.given["i_max"]
+        notes.append("no flow test: Kq fitted to the runs (nominal start 0.5 gpm / rated current)")
+    p0 = _given_params(ds, kq, kpot, TYPICAL["beta_over_Vt"], TYPICAL["Kce"])
+    p0, start = _start_from_oscillation(runs, p0)
+    p = fit_loop(runs, p0, fit_kq=ds.flow_test is None)
+    return Baseline(p, "runs", f"linear loop fitted to the runs, starting from the {start}", tuple(notes))
+
+
+def choose(ds: Dataset, runs: Sequence[GapRun], *, key: str | Path | None, implied_kfb: float | None) -> Baseline:
+    """The baseline by preference: key, the students' identification, the runs."""
+    if key is not None:
+        return from_key(key, ds)
+    if ds.calibration is not None and ds.flow_test is not None and ds.friction is not None:
+        try:
+            ident = identify(ds)
+            return Baseline(ident.params.with_(sample_time=ds.given["sample_time"]), "identified",
+                            "the students' identification (flow test, calibration, friction data, instability run)")
+        except IdentificationError as exc:
+            base = from_runs(ds, runs, implied_kfb)
+            return Baseline(base.params, base.source, base.method, (f"students' identification failed: {exc}", *base.notes))
+    return from_runs(ds, runs, implied_kfb)

@@ -1,0 +1,142 @@
+"""Assembling the schema objects of ``diagnosis.json`` from the computed results.
+
+Floats are rounded to 6 significant digits so that the file is stable byte for byte.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import stats
+
+from grader.errors import ModelError
+from grader.gap import linsim, metrics
+from grader.gap.baseline import Baseline
+from grader.gap.candidates import LINEAR, N_LINEAR
+from grader.gap.crossval import CrossValidation
+from grader.gap.fit import FitState
+from grader.gap.noise import Noise
+from grader.gap.runs import GapRun
+from grader.gap.schema import (
+    BaselineModel,
+    Candidate,
+    Gap,
+    NoiseFloor,
+    ReadOff,
+    RunGap,
+    RunShrink,
+    SegmentGap,
+    Value,
+)
+from grader.gap.segments import Segment, shares
+from grader.keys import MODEL_UNITS
+
+Array = NDArray[np.float64]
+
+
+def r6(x: float) -> float:
+    """Round to 6 significant digits (stable JSON)."""
+    return float(f"{x:.6g}")
+
+
+def value(v: float, unit: str, interval: tuple[float, float] | None = None) -> Value:
+    return Value(value=r6(v), unit=unit, interval=None if interval is None else (r6(interval[0]), r6(interval[1])))
+
+
+def baseline_model(b: Baseline) -> BaselineModel:
+    p = b.params
+    params = {n: value(float(getattr(p, n)), u) for n, u in MODEL_UNITS.items()}
+    return BaselineModel(source=b.source, method=b.method, params=params)  # type: ignore[arg-type]
+
+
+def noise_floor(n: Noise) -> NoiseFloor:
+    return NoiseFloor(
+        sigma=value(n.sigma, "in"), adc_step=None if n.adc_step is None else value(n.adc_step, "in"),
+        method="RMS of what a 13-sample quintic smoothing leaves of the readings (white noise and ADC steps); "
+               "lattice of the readings (ADC step)",
+    )
+
+
+def run_gap(run: GapRun, y_model: Array, segs: list[Segment], noise: Noise) -> RunGap:
+    res = y_model - run.y
+    t = run.t
+    seg_out = []
+    for s, share in zip(segs, shares(res, segs)):
+        t0 = float(t[s.i0]) if s.i0 < run.n else float(t[-1])
+        t1 = float(t[s.i1 - 1]) if s.i1 > s.i0 else t0
+        rms = float(np.sqrt(np.mean(res[s.i0:s.i1] ** 2))) if s.i1 > s.i0 else 0.0
+        seg_out.append(SegmentGap(segment=s.name, t_start=r6(t0), t_end=r6(t1), samples=s.i1 - s.i0, share=r6(share),
+                                  rms_residual=r6(rms)))  # type: ignore[arg-type]
+    e = metrics.nrmse(run.y, y_model)
+    return RunGap(run=run.name, kind=run.kind, nrmse=r6(e), fit_percent=r6(100 * (1 - e)),  # type: ignore[arg-type]
+                  rms_residual=r6(float(np.sqrt(np.mean(res**2)))), noise_nrmse=r6(noise.floor / run.scale),
+                  segments=seg_out)
+
+
+def gap(by_run: list[RunGap]) -> Gap:
+    return Gap(nrmse=r6(float(np.sqrt(np.mean([g.nrmse**2 for g in by_run])))), by_run=by_run)
+
+
+def readoffs(runs: Sequence[GapRun], y_lin: Sequence[Array], y_aug: Sequence[Array] | None, base_kcrit: float | None,
+             gain_unit: str) -> list[ReadOff]:
+    """Measured vs predicted quantities students read off, per run."""
+    out = []
+    fns = {"step": [("steady_state_error", "in", metrics.steady_state_error), ("overshoot", "%", metrics.overshoot)],
+           "ramp": [("steady_state_error", "in", metrics.steady_state_error)],
+           "instability": [("oscillation_frequency", "Hz", metrics.oscillation_frequency)]}
+    for i, run in enumerate(runs):
+        for q, unit, f in fns[run.kind]:
+            aug = None if y_aug is None else r6(f(run, y_aug[i]))
+            out.append(ReadOff(quantity=q, run=run.name, unit=unit, measured=r6(f(run, run.y)),  # type: ignore[arg-type]
+                               predicted=r6(f(run, y_lin[i])), augmented=aug))
+        if run.kind == "instability":
+            out.append(ReadOff(quantity="critical_gain", run=run.name, unit=gain_unit, measured=r6(run.controller.Kp),
+                               predicted=None if base_kcrit is None else r6(base_kcrit)))
+    return out
+
+
+def critical_gain(b: Baseline) -> float | None:
+    """The baseline's sampled-loop critical gain, or None if it has none."""
+    try:
+        return linsim.critical_gain(b.params)
+    except ModelError:
+        return None
+
+
+def candidate(state: FitState, cv: CrossValidation, before: CrossValidation, score: float, runs: Sequence[GapRun],
+              base: Baseline) -> Candidate:
+    """One candidate's entry: parameters with jackknife-or-Gauss–Newton 95 % intervals, held-out gap, shrink."""
+    c, th = state.candidate, state.theta
+    se = _theta_se(state, cv)
+    k = float(stats.t.ppf(0.975, max(len(runs) - 1, 1)))
+    params = {}
+    for j, fp in enumerate(c.params, start=N_LINEAR):
+        v = th[j] * fp.scale
+        params[c.label(fp)] = value(v, fp.unit, (max(fp.lo, v - k * se[j] * fp.scale), min(fp.hi, v + k * se[j] * fp.scale)))
+    lin = {}
+    for j, (name, unit) in enumerate(LINEAR):
+        v0 = float(getattr(base.params, name))
+        lin[name] = value(v0 * np.exp(th[j]), unit, (v0 * np.exp(th[j] - k * se[j]), v0 * np.exp(th[j] + k * se[j])))
+    after, bef = cv.overall, before.overall
+    by_run = [RunShrink(run=run.name, heldout_nrmse_before=r6(b), heldout_nrmse_after=r6(a), shrink=r6(_shrink(b, a)))
+              for run, b, a in zip(runs, before.heldout, cv.heldout)]
+    fit = float(np.sqrt(state.cost / len(runs)))
+    return Candidate(effect=c.effect, params=params, linear_params=lin, n_params=c.n_theta, fit_nrmse=r6(fit),
+                     heldout_nrmse_before=r6(bef), heldout_nrmse_after=r6(after), shrink=r6(_shrink(bef, after)),
+                     score=r6(score), by_run=by_run)
+
+
+def _shrink(before: float, after: float) -> float:
+    return 1.0 - after / before if before > 0 else 0.0
+
+
+def _theta_se(state: FitState, cv: CrossValidation) -> Array:
+    """max(jackknife over folds, Gauss–Newton with the residual variance) per θ coordinate."""
+    assert state.jac is not None
+    n, p = state.res.size, state.theta.size
+    s2 = state.cost / max(n - p, 1)
+    cov = s2 * np.linalg.pinv(state.jac.T @ state.jac)
+    return np.maximum(cv.jackknife_se(), np.sqrt(np.maximum(np.diag(cov), 0.0)))
+

@@ -1,0 +1,144 @@
+"""Candidate explanations of the gap: each canonical effect, plus ``none``.
+
+A candidate's parameter vector is ``θ = [ln(β/Vt ÷ β/Vt₀), ln(Kce ÷ Kce₀), ln(Kq ÷ Kq₀), m₁ …]``:
+the linear model's β/Vt and Kce are always re-fitted (an unmodelled effect biases them), and
+so is the loop gain through Kq (the flow test that gives Kq sees the valve's own effects, and
+near the critical gain a loop gain off by 0.1 % changes the instability run's growth visibly).
+Each effect magnitude m is the parameter's value divided by the top of its realistic range
+(from :mod:`grader.model.effects`), so every coordinate is O(1).
+``sensor_noise`` and ``sensor_quantization`` are measurement noise, not candidates
+(see :mod:`grader.gap.noise`); ``valve_dynamics`` is fitted as a first-order spool lag.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from grader.gap.backend import Point
+from grader.model.effects import EFFECTS, EffectSet, ParamSpec
+from grader.model.params import RigParams
+
+Array = NDArray[np.float64]
+NONE = "none"
+#: Canonical effects that describe the sensor, not the physics: part of the noise floor.
+NOISE_EFFECTS = ("sensor_noise", "sensor_quantization")
+#: Parameters held fixed when fitting (effect -> {param: value}).
+FIXED: Mapping[str, Mapping[str, float]] = {"valve_dynamics": {"order": 1.0, "zeta": 0.7}}
+#: Forward-difference steps (log ratios, magnitudes): small where the model is smooth in θ, larger for
+#: the switching effects (stick-slip, backlash, deadband, a current limit), whose residual has kinks.
+SMOOTH_STEPS, SWITCHING_STEPS = (1e-4, 1e-3), (2e-3, 2e-2)
+SWITCHING = frozenset({"coulomb_friction", "valve_hysteresis", "valve_deadband", "valve_saturation"})
+GRID_POINTS = 5
+#: The linear model's parameters re-fitted with every candidate (log ratios lead θ), with their units.
+LINEAR: tuple[tuple[str, str], ...] = (("beta_over_Vt", "psi/in**3"), ("Kce", "in**3/s/psi"), ("Kq", "in**3/s/mA"))
+N_LINEAR = len(LINEAR)
+
+
+@dataclass(frozen=True)
+class FitParam:
+    """A fitted parameter of ``effect``: value = m·scale, with bounds lo ≤ value ≤ hi [unit]."""
+
+    effect: str
+    name: str
+    unit: str
+    scale: float
+    lo: float
+    hi: float
+    typical_lo: float
+
+    def grid(self, n: int = GRID_POINTS) -> Array:
+        """Starting magnitudes m, log-spaced over the realistic range (from 1/16 of its top, and 0,
+        if it starts at 0)."""
+        if self.typical_lo > 0:
+            return np.geomspace(self.typical_lo / self.scale, 1.0, n)
+        return np.concatenate([[0.0], np.geomspace(1.0 / 16.0, 1.0, n - 1)])
+
+
+def _fit_param(effect: str, spec: ParamSpec, upper: float | None = None) -> FitParam:
+    hi = spec.hi if upper is None else min(spec.hi, upper)
+    return FitParam(effect, spec.name, spec.unit, spec.typical[1], spec.lo, hi, spec.typical[0])
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """An effect (or ``none``, or effects added greedily, ``a+b``) with its fitted parameters."""
+
+    effect: str
+    params: tuple[FitParam, ...] = ()
+    fixed: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    names: tuple[str, ...] = ()
+
+    @property
+    def n_theta(self) -> int:
+        return N_LINEAR + len(self.params)
+
+    def label(self, p: FitParam) -> str:
+        """A parameter's key in reports: its name, prefixed by its effect in a combination."""
+        return p.name if len(self.names) < 2 else f"{p.effect}.{p.name}"
+
+    def steps(self) -> Array:
+        """Forward-difference step per coordinate of θ."""
+        log_step, mag_step = SWITCHING_STEPS if SWITCHING & set(self.names) else SMOOTH_STEPS
+        return np.array([log_step] * N_LINEAR + [mag_step] * len(self.params))
+
+    def bounds(self) -> tuple[Array, Array]:
+        """(lower, upper) of θ; the log ratios are kept within a factor 20."""
+        lo = [-3.0] * N_LINEAR + [p.lo / p.scale for p in self.params]
+        hi = [3.0] * N_LINEAR + [p.hi / p.scale for p in self.params]
+        return np.array(lo), np.array(hi)
+
+    def values(self, theta: Array) -> dict[str, dict[str, float]]:
+        """{effect: {parameter: value [internal units]}} at θ, held parameters included."""
+        out: dict[str, dict[str, float]] = {n: dict(self.fixed.get(n, {})) for n in self.names}
+        for p, m in zip(self.params, theta[N_LINEAR:]):
+            out[p.effect][p.name] = float(np.clip(m * p.scale, p.lo, p.hi))
+        return out
+
+    def strength(self, theta: Array) -> float:
+        """How strongly the (last added) effect acts at θ, as a fraction of its realistic range's top
+        (saturation: the current it takes from the amplifier's range; no parameters, as the orifice
+        law: 1)."""
+        if not self.names:
+            return 0.0
+        own = [(j, p) for j, p in enumerate(self.params, start=N_LINEAR) if p.effect == self.names[-1]]
+        if not own:
+            return 1.0
+        j, p = own[0]
+        if p.name == "i_max":
+            return max(0.0, (p.hi - theta[j] * p.scale) / p.scale)
+        return float(theta[j])
+
+    def point(self, base: RigParams, theta: Array) -> Point:
+        """The model at θ around the baseline ``base``."""
+        p = base.with_(**{name: float(getattr(base, name) * np.exp(theta[j])) for j, (name, _) in enumerate(LINEAR)})
+        return Point(p, EffectSet(self.values(theta)))
+
+
+def combine(first: Candidate, second: Candidate) -> Candidate:
+    """``second`` added on top of ``first`` (θ: first's, then second's magnitudes)."""
+    return Candidate(f"{first.effect}+{second.effect}", first.params + second.params,
+                     {**first.fixed, **second.fixed}, first.names + second.names)
+
+
+def make_candidates(base: RigParams, names: Sequence[str] | None = None) -> list[Candidate]:
+    """``none`` and every physical canonical effect (or only ``names``), in canonical order."""
+    wanted = [n for n in EFFECTS if n not in NOISE_EFFECTS] if names is None else list(names)
+    out = [Candidate(NONE)]
+    for name in wanted:
+        if name == NONE:
+            continue
+        spec = EFFECTS[name]
+        fixed = FIXED.get(name, {})
+        upper = {"i_max": base.i_max}
+        params = tuple(_fit_param(name, p, upper.get(p.name)) for p in spec.params if p.name not in fixed)
+        out.append(Candidate(name, params, {name: fixed} if fixed else {}, (name,)))
+    return out
+
+
+def physical_effects() -> tuple[str, ...]:
+    """Canonical effects that can be candidates."""
+    return tuple(n for n in EFFECTS if n not in NOISE_EFFECTS)

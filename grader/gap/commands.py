@@ -1,0 +1,65 @@
+"""Verbs ``grader diagnose`` (sim-to-real diagnosis of a lab dataset) and ``grader bench-gap``
+(the withheld-effect benchmark)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from grader.errors import DiagnosisError
+from grader.gap.candidates import physical_effects
+
+
+def _effects(text: str | None, known: tuple[str, ...] | None = None) -> list[str] | None:
+    """Comma-separated effect names, each one of ``known`` (default: the candidate effects)."""
+    if text is None:
+        return None
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    known = known or physical_effects()
+    bad = [n for n in names if n not in known]
+    if bad or not names:
+        raise DiagnosisError(f"--effects: unknown candidate(s) {', '.join(bad) or '(none given)'} "
+                             f"(known: {', '.join(known)})")
+    return names
+
+
+def _diagnose(args: argparse.Namespace) -> int:
+    from grader.gap.diagnose import analyse
+    from grader.gap.report import write_outputs
+    from grader.gap.summary import summary
+
+    t0 = time.perf_counter()
+    analysis = analyse(args.dataset, key=args.key, effects=_effects(args.effects), second=args.second)
+    paths = write_outputs(analysis, Path(args.out))
+    print(summary(analysis.diagnosis))
+    print(f"\nwrote {paths[0]}, {paths[1]} and {len(paths) - 2} plots in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from grader.gap.bench import TRUTHS, BenchConfig, run_benchmark
+
+    if args.n < 1:
+        raise DiagnosisError(f"--n must be at least 1, got {args.n}")
+    cfg = BenchConfig(n=args.n, seed=args.seed, effects=tuple(_effects(args.effects, TRUTHS) or ()) or None,
+                      sweep=args.sweep, workdir=Path(args.workdir) if args.workdir else None)
+    print(run_benchmark(cfg).text())
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("diagnose", help="locate the sim-to-real gap of a lab dataset and name the effect behind it")
+    p.add_argument("dataset", help="lab dataset folder (manifest.json + CSV files)")
+    p.add_argument("-o", "--out", default="diagnosis", help="folder for diagnosis.json, report.html and plots (default: diagnosis)")
+    p.add_argument("--key", help="answer key whose linear model to use (default: identify it from the dataset)")
+    p.add_argument("--effects", help="comma-separated candidate effects to try (default: all)")
+    p.add_argument("--second", action="store_true", help="also try a second effect on top of the verdict, greedily")
+    p.set_defaults(handler=_diagnose)
+    p = sub.add_parser("bench-gap", help="withheld-effect benchmark of the diagnosis on synthetic datasets")
+    p.add_argument("--n", type=int, default=5, help="datasets per effect (default: 5)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    p.add_argument("--effects", help="comma-separated effects to benchmark (default: all, plus none)")
+    p.add_argument("--sweep", action="store_true", help="also measure accuracy as each effect shrinks toward the noise")
+    p.add_argument("--workdir", help="keep the generated datasets here (default: a temporary folder)")
+    p.set_defaults(handler=_bench)

@@ -1,0 +1,211 @@
+"""Least squares for many fits at once, batched so each round is one simulator pass.
+
+A fit is a candidate on a set of runs (all of them, or the training runs of a
+cross-validation fold). Its objective at θ is Σ NRMSE_run² over its runs: the residual
+vector ``(y_model − y)/(scale·√n)`` stacked over those runs. Every round evaluates, for
+every fit still improving, Levenberg–Marquardt trial steps (one per damping factor) *and*
+the forward-difference Jacobian at each trial, in one batched call; the best trial is
+kept if it lowers the cost. Starting points of the all-runs fits come from a profile: the
+linear parameters fitted at each magnitude of a coarse grid over the effect's realistic range.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from grader.gap.backend import Point
+from grader.gap.candidates import N_LINEAR, Candidate
+from grader.gap.runs import GapRun
+from grader.model.params import RigParams
+
+Array = NDArray[np.float64]
+#: (requests of (point, run index)) -> y per request
+Requests = Callable[[Sequence[tuple[Point, int]]], list[Array]]
+#: ln(Kce/Kce₀) tried before fitting: an unmodelled effect can bias the students' Kce threefold either way.
+KCE_LINE = (-1.2, -0.6, 0.0, 0.5, 1.0)
+#: Relative cost decrease below which a fit counts as converged.
+CONVERGED = 1e-4
+#: Cap on a normalised residual: a diverging trial model gets a large, finite cost.
+RES_CAP = 1e3
+
+
+@dataclass(frozen=True)
+class FitState:
+    """A candidate fitted on ``runs`` at θ: stacked residual ``res``, Jacobian ``jac`` (rows × θ), damping ``lam``."""
+
+    candidate: Candidate
+    runs: tuple[int, ...]
+    theta: Array
+    res: Array
+    jac: Array | None = None
+    lam: float = 1e-2
+    done: bool = False
+    n_free: int | None = None  # only the first n_free coordinates of θ move (None: all)
+
+    @property
+    def cost(self) -> float:
+        return float(self.res @ self.res)
+
+    @property
+    def free(self) -> int:
+        return self.candidate.n_theta if self.n_free is None else self.n_free
+
+
+def _probe(c: Candidate, theta: Array, n_free: int) -> list[Array]:
+    """θ moved by one forward (or, at the upper bound, backward) step in each free coordinate."""
+    hi = c.bounds()[1]
+    out = []
+    for j, h in enumerate(c.steps()[:n_free]):
+        t = theta.copy()
+        t[j] = t[j] + h if t[j] + h <= hi[j] else t[j] - h
+        out.append(t)
+    return out
+
+
+def _jacobian(c: Candidate, theta: Array, base: Array, probes: Sequence[Array]) -> Array:
+    """Columns for the free coordinates (as many as ``probes``)."""
+    hi = c.bounds()[1]
+    cols = [(r - base) / (h if theta[j] + h <= hi[j] else -h) for j, (h, r) in enumerate(zip(c.steps(), probes))]
+    return np.stack(cols, axis=1)
+
+
+class BatchFitter:
+    """Fits many (candidate, runs) problems around one baseline with a shared simulator."""
+
+    def __init__(self, runs: Sequence[GapRun], base: RigParams, simulate: Requests) -> None:
+        self.runs, self.base, self.sim = list(runs), base, simulate
+
+    def residuals(self, jobs: Sequence[tuple[Candidate, Array, tuple[int, ...]]]) -> list[Array]:
+        """Stacked residual of each (candidate, θ, runs) job."""
+        requests = [(c.point(self.base, th), i) for c, th, idx in jobs for i in idx]
+        ys = iter(self.sim(requests))
+        out = []
+        for _, _, idx in jobs:
+            parts = [(next(ys) - self.runs[i].y) / (self.runs[i].scale * np.sqrt(self.runs[i].n)) for i in idx]
+            out.append(np.clip(np.nan_to_num(np.concatenate(parts), nan=RES_CAP), -RES_CAP, RES_CAP))
+        return out
+
+    def _line(self, grid: list[tuple[Candidate, Array]]) -> list[FitState]:
+        """Each (candidate, θ) with the best Kce of :data:`KCE_LINE` (one batched evaluation)."""
+        every = tuple(range(len(self.runs)))
+        jobs = [(c, th + np.array([0.0, dk] + [0.0] * (th.size - 2)), every) for c, th in grid for dk in KCE_LINE]
+        res = self.residuals(jobs)
+        out = []
+        for k in range(len(grid)):
+            j = min(range(len(KCE_LINE)), key=lambda i: float(res[k * len(KCE_LINE) + i] @ res[k * len(KCE_LINE) + i]))
+            c, th, _ = jobs[k * len(KCE_LINE) + j]
+            out.append(FitState(c, every, th, res[k * len(KCE_LINE) + j], n_free=N_LINEAR))
+        return out
+
+    def profile(self, starts: Sequence[tuple[Candidate, Array]], owner: Sequence[int], *, rounds: int) -> list[FitState]:
+        """The linear parameters fitted at each start (its magnitudes held; Kce from the best of a coarse
+        line first); the best start of each owner is returned, ready to fit all coordinates."""
+        states = self.refine(self._line(list(starts)), rounds=rounds, dampings=(1.0,))
+        best: dict[int, FitState] = {}
+        for s, k in zip(states, owner):
+            if k not in best or s.cost < best[k].cost:
+                best[k] = s
+        return [replace(best[k], n_free=None, jac=None, done=False) for k in sorted(best)]
+
+
+    def rebase(self, states: Sequence[FitState]) -> list[FitState]:
+        """The same θ evaluated on this fitter's runs: residual and Jacobian in one round."""
+        every = tuple(range(len(self.runs)))
+        jobs = [(s.candidate, t, every) for s in states for t in [s.theta, *_probe(s.candidate, s.theta, s.free)]]
+        res, out, pos = self.residuals(jobs), [], 0
+        for s in states:
+            n = s.free
+            jac = _jacobian(s.candidate, s.theta, res[pos], res[pos + 1:pos + 1 + n])
+            out.append(replace(s, runs=every, res=res[pos], jac=jac, done=False))
+            pos += n + 1
+        return out
+
+    @staticmethod
+    def _trials(s: FitState, dampings: Sequence[float]) -> list[tuple[float, Array]]:
+        """(λ, θ) of the damped Gauss–Newton steps from ``s``, kept within the bounds."""
+        assert s.jac is not None
+        lo, hi = s.candidate.bounds()
+        jtj, g = s.jac.T @ s.jac, s.jac.T @ s.res
+        d = np.diag(jtj).copy() + 1e-12
+        out = []
+        for f in dampings:
+            step = np.zeros_like(s.theta)
+            step[:s.free] = np.linalg.solve(jtj + s.lam * f * np.diag(d), -g)
+            out.append((s.lam * f, np.clip(s.theta + step, lo, hi)))
+        return out
+
+    def round(self, states: Sequence[FitState], dampings: Sequence[float]) -> list[FitState]:
+        """One round: Jacobians where missing, else trial steps with their Jacobians."""
+        jobs: list[tuple[Candidate, Array, tuple[int, ...]]] = []
+        plan: list[tuple[int, float, Array, bool]] = []  # state, λ, θ, is-a-trial
+        for k, s in enumerate(states):
+            if s.done:
+                continue
+            if s.jac is None:
+                plan.append((k, s.lam, s.theta, False))
+                jobs += [(s.candidate, t, s.runs) for t in _probe(s.candidate, s.theta, s.free)]
+                continue
+            for lam, th in self._trials(s, dampings):
+                plan.append((k, lam, th, True))
+                jobs += [(s.candidate, t, s.runs) for t in [th, *_probe(s.candidate, th, s.free)]]
+        return self._update(list(states), plan, self.residuals(jobs))
+
+    @staticmethod
+    def _update(states: list[FitState], plan: list[tuple[int, float, Array, bool]], res: list[Array]) -> list[FitState]:
+        new, pos = list(states), 0
+        best: dict[int, FitState] = {}
+        for k, lam, th, trial in plan:
+            s = states[k]
+            n = s.free
+            base = res[pos] if trial else s.res
+            probes = res[pos + trial:pos + trial + n]
+            pos += n + trial
+            cand = replace(s, theta=th, res=base, jac=_jacobian(s.candidate, th, base, probes), lam=max(lam * 0.5, 1e-6))
+            if not trial:
+                new[k] = cand
+            elif k not in best or cand.cost < best[k].cost:
+                best[k] = cand
+        for k, cand in best.items():
+            s = states[k]
+            if cand.cost < s.cost:
+                new[k] = replace(cand, done=(s.cost - cand.cost) < CONVERGED * s.cost)
+            else:
+                new[k] = replace(s, lam=s.lam * 16.0, done=s.lam > 1e4)
+        return new
+
+    def refine(self, states: Sequence[FitState], *, rounds: int, dampings: Sequence[float]) -> list[FitState]:
+        """Up to ``rounds`` rounds (Jacobians first where missing); Jacobians end at the final θ."""
+        out = list(states)
+        if any(s.jac is None for s in out):
+            out = self.round(out, dampings)
+        for _ in range(rounds):
+            if all(s.done for s in out):
+                break
+            out = self.round(out, dampings)
+        return out
+
+    def fit(self, states: Sequence[FitState], *, rounds: int) -> list[FitState]:
+        """All coordinates: Levenberg–Marquardt with three dampings per round."""
+        return self.refine(states, rounds=rounds, dampings=(0.25, 1.0, 4.0))
+
+
+def grid_starts(candidates: Sequence[Candidate], theta0: Sequence[Array] | None = None
+                ) -> tuple[list[tuple[Candidate, Array]], list[int]]:
+    """Starts over the grid of the magnitude of each candidate's last added effect, from ``theta0[k]``
+    (default: the baseline and zero magnitudes); with the index of the candidate each belongs to."""
+    starts: list[tuple[Candidate, Array]] = []
+    owner: list[int] = []
+    for k, c in enumerate(candidates):
+        base = np.zeros(c.n_theta) if theta0 is None else np.asarray(theta0[k], dtype=float)
+        last = c.params[-1] if c.params and c.params[-1].effect == c.names[-1] else None
+        for m in ([None] if last is None else last.grid()):
+            th = base.copy()
+            if m is not None:
+                th[-1] = m
+            starts.append((c, th))
+            owner.append(k)
+    return starts, owner

@@ -1,0 +1,110 @@
+"""The diagnosis outputs: ``diagnosis.json``, ``report.html`` (self-contained, PNGs embedded
+as base64, no scripts) and the PNG plots beside it (``run_<name>.png``, ``candidates.png``)."""
+
+from __future__ import annotations
+
+import base64
+import html
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from grader.gap import plots
+from grader.gap.schema import Diagnosis, diagnosis_json
+from grader.gap.summary import READOFF_NAMES, effect_name, param_text, show, summary
+
+if TYPE_CHECKING:
+    from grader.gap.diagnose import Analysis
+
+_CSS = """
+body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:2rem auto;max-width:60rem;
+padding:0 1rem;color:#222;line-height:1.45}
+h1{font-size:1.5rem}h2{font-size:1.2rem;margin-top:2rem;border-bottom:1px solid #ddd}
+table{border-collapse:collapse;font-size:.85rem;margin:.5rem 0 1rem}
+th,td{border:1px solid #ddd;padding:.25rem .5rem;vertical-align:top}th{background:#f3f3f3;text-align:left}
+td.n{text-align:right;font-variant-numeric:tabular-nums}img{max-width:100%;height:auto}
+.verdict{background:#eef7f1;border-left:4px solid #1b9e77;padding:.5rem 1rem}.meta{color:#555;font-size:.85rem}
+"""
+
+
+def _img(data: bytes, alt: str) -> str:
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{base64.b64encode(data).decode()}">'
+
+
+def _table(head: list[str], rows: list[list[str]], numeric: set[int] | None = None) -> str:
+    numeric = numeric or set()
+    th = "".join(f"<th>{html.escape(h)}</th>" for h in head)
+    body = "".join(
+        "<tr>" + "".join(f'<td{" class=n" if j in numeric else ""}>{html.escape(c)}</td>' for j, c in enumerate(r)) + "</tr>"
+        for r in rows
+    )
+    return f"<table><tr>{th}</tr>{body}</table>"
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.3g} %"
+
+
+def _gap_table(d: Diagnosis) -> str:
+    rows = []
+    for g in d.gap.by_run:
+        segs = ", ".join(f"{s.segment.replace('_', ' ')} {_pct(s.share)}" for s in g.segments if s.samples)
+        rows.append([g.run, g.kind, _pct(g.nrmse), f"{g.fit_percent:.1f} %", _pct(g.noise_nrmse), segs])
+    return _table(["run", "kind", "NRMSE", "fit", "noise alone", "share of the squared gap by segment"], rows, {2, 3, 4})
+
+
+def _readoff_table(d: Diagnosis) -> str:
+    def v(x: float | None, unit: str) -> str:
+        return "–" if x is None else show(x, unit)
+
+    rows = [[READOFF_NAMES[r.quantity], r.run, v(r.measured, r.unit), v(r.predicted, r.unit), v(r.augmented, r.unit)]
+            for r in d.readoffs]
+    return _table(["quantity", "run", "measured", "linear model", "augmented model"], rows, {2, 3, 4})
+
+
+def _candidate_table(d: Diagnosis) -> str:
+    rows = []
+    for c in d.candidates:
+        params = "; ".join(param_text(k, p) for k, p in c.params.items()) or "–"
+        lin = "; ".join(param_text(k, p) for k, p in c.linear_params.items())
+        rows.append([effect_name(c.effect), params, lin, _pct(c.fit_nrmse), _pct(c.heldout_nrmse_after), _pct(c.shrink)])
+    return _table(["candidate", "fitted effect (95 %)", "re-fitted β/Vt, Kce, Kq (95 %)", "fit NRMSE", "held-out NRMSE",
+                   "shrink"], rows, {3, 4, 5})
+
+
+def render_html(analysis: Analysis, images: dict[str, bytes]) -> str:
+    """The report page."""
+    d = analysis.diagnosis
+    paras = "".join(f"<p>{html.escape(p)}</p>" for p in summary(d).split("\n\n")[1:])
+    runs = "".join(f"<h3>{html.escape(r.name)}</h3>{_img(images[f'run_{r.name}.png'], r.name)}" for r in analysis.runs)
+    notes = "".join(f"<li>{html.escape(n)}</li>" for n in d.notes)
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>Diagnosis of {html.escape(d.dataset)}</title>
+<style>{_CSS}</style></head><body>
+<h1>Sim-to-real diagnosis of {html.escape(d.dataset)}</h1>
+<p class="meta">Station {html.escape(d.station)} · linear model: {html.escape(d.baseline.method)} ·
+noise σ ≈ {show(d.noise.sigma.value, "in")} · grader {html.escape(d.generated_by.get("version", ""))}</p>
+<div class="verdict">{paras}</div>
+<h2>Where the gap lies</h2>{_gap_table(d)}
+<h2>What students read off</h2>{_readoff_table(d)}
+<h2>Which effect</h2>{_img(images["candidates.png"], "candidates ranked by shrink")}{_candidate_table(d)}
+<h2>Runs: measured, linear and augmented model</h2>
+<p>Residuals are shaded by segment; the augmented model adds {html.escape(effect_name(d.verdict.effect))}.</p>{runs}
+{f"<h2>Notes</h2><ul>{notes}</ul>" if notes else ""}
+</body></html>
+"""
+
+
+def write_outputs(analysis: Analysis, out: Path) -> list[Path]:
+    """Write diagnosis.json, report.html and the PNGs into ``out``; returns the paths written."""
+    out.mkdir(parents=True, exist_ok=True)
+    d = analysis.diagnosis
+    images = {f"run_{r.name}.png": plots.run_figure(r, s, yl, ya, d.verdict.effect)
+              for r, s, yl, ya in zip(analysis.runs, analysis.segments, analysis.y_linear, analysis.y_augmented)}
+    images["candidates.png"] = plots.candidates_figure(d)
+    written = []
+    for name, data in images.items():
+        (out / name).write_bytes(data)
+        written.append(out / name)
+    (out / "diagnosis.json").write_text(diagnosis_json(d), encoding="utf-8")
+    (out / "report.html").write_text(render_html(analysis, images), encoding="utf-8")
+    return [out / "diagnosis.json", out / "report.html", *written]

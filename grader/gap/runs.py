@@ -1,0 +1,136 @@
+"""The dataset's runs, checked and prepared for the diagnosis.
+
+A :class:`GapRun` is one closed-loop run on the controller's sample grid: command
+``r_k`` [in] and reading ``y_k`` [in] at the instants ``t_k = t_0 + k·T``; ``scale``
+[in] is the NRMSE denominator ‖y − mean(y)‖/√n. ``noise`` [in] estimates the reading
+noise the rig's controller saw: the reading minus its local quintic smoothing
+(Savitzky–Golay, :data:`NOISE_WINDOW` samples, which passes a 25 Hz oscillation to within
+0.01 mil, so a ringing step injects no signal, and still catches 72 % of white noise's variance). Models are simulated with their
+controller reading it too, so that effects the noise dithers (backlash, deadband,
+stiction) act as they did on the rig. It is zero for the instability run, whose
+large oscillation no smoother separates from the noise to the needed precision. Checks raise :class:`DiagnosisError`
+naming the run: no runs, a run too short, rows that are not one per controller sample,
+and a manifest gain the recorded controller output ``u`` contradicts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.signal import savgol_filter
+
+from grader.datasets import Dataset, Run
+from grader.errors import DiagnosisError
+from grader.model.params import Controller
+from grader.model.rig_setup import DAC_LIMIT
+
+Array = NDArray[np.float64]
+#: Least recorded time after the command starts [s].
+MIN_DURATION = 0.2
+#: Relative disagreement between the manifest gain and the gain ``u`` implies that is an error.
+GAIN_TOLERANCE = 0.1
+NOISE_WINDOW, NOISE_ORDER = 13, 5
+
+
+@dataclass(frozen=True)
+class GapRun:
+    """One run on the sample grid (see module docstring)."""
+
+    name: str
+    kind: str
+    controller: Controller
+    t: Array
+    r: Array
+    y: Array
+    u: Array | None
+    start: float
+    scale: float
+    noise: Array
+
+    @property
+    def n(self) -> int:
+        return self.t.size
+
+
+def command_start(t: Array, r: Array) -> float:
+    """Time [s] at which the command first changes."""
+    moved = np.flatnonzero(np.abs(r - r[0]) > 1e-12)
+    return float(t[moved[0]]) if moved.size else float(t[0])
+
+
+def _on_grid(run: Run, T: float) -> GapRun:
+    """The run's rows as controller samples (one row per sample, evenly spaced)."""
+    dt = float(np.median(np.diff(run.t)))
+    if abs(dt - T) > 0.01 * T or np.max(np.abs(np.diff(run.t) - T)) > 0.05 * T:
+        raise DiagnosisError(
+            f"run {run.name} ({run.spec.file}): rows are {dt * 1e3:.4g} ms apart, not evenly at the manifest's "
+            f"sample_time of {T * 1e3:g} ms; the diagnosis needs one row per controller sample"
+        )
+    start = command_start(run.t, run.r)
+    if run.t[-1] - start < MIN_DURATION or run.t.size < 50:
+        raise DiagnosisError(
+            f"run {run.name} ({run.spec.file}): only {max(run.t[-1] - start, 0) * 1e3:.0f} ms recorded after the "
+            f"command starts ({run.t.size} rows); the diagnosis needs at least {MIN_DURATION * 1e3:.0f} ms and 50 rows"
+        )
+    scale = float(np.std(run.y))
+    if scale <= 0:
+        raise DiagnosisError(f"run {run.name} ({run.spec.file}): the position never changes; nothing to compare")
+    noise = np.zeros(run.t.size) if run.spec.kind == "instability" else run.y - savgol_filter(run.y, NOISE_WINDOW, NOISE_ORDER)
+    return GapRun(run.name, run.spec.kind, run.controller, run.t, run.r, run.y, run.u, start, scale, noise)
+
+
+def control_law(c: Controller, e: Array, T: float) -> Array:
+    """u_k [V] of the digital controller for the error sequence ``e`` (already times k_fb)."""
+    d = np.diff(e, prepend=0.0)
+    return c.Kp * e + c.Ki * T * np.cumsum(e) + c.Kd * d / T
+
+
+def implied_feedback_gain(run: GapRun, T: float) -> float | None:
+    """The k_fb [V/in or 1] that makes the manifest's gains reproduce the recorded u, or None without u."""
+    if run.u is None:
+        return None
+    basis = control_law(run.controller, run.r - run.y, T)
+    use = (np.abs(run.u) < 0.95 * DAC_LIMIT) & (np.abs(basis) > 1e-12)
+    if use.sum() < 20 or not np.any(np.abs(run.u[use]) > 1e-6):
+        return None
+    b, u = basis[use], run.u[use]
+    return float(b @ u / (b @ b))
+
+
+def check_gains(runs: list[GapRun], k_fb: float | None, T: float) -> float | None:
+    """Raise if a run's recorded u contradicts its manifest gain; returns the implied k_fb (median)."""
+    implied = {r.name: implied_feedback_gain(r, T) for r in runs}
+    known = {n: v for n, v in implied.items() if v is not None}
+    if not known:
+        return None
+    ref = k_fb if k_fb is not None else float(np.median(list(known.values())))
+    for run in runs:
+        v = known.get(run.name)
+        if v is not None and (v <= 0 or abs(v / ref - 1) > GAIN_TOLERANCE):
+            c = run.controller
+            factor = v / ref
+            raise DiagnosisError(
+                f"run {run.name}: the manifest gives Kp = {c.Kp:g} (Ki = {c.Ki:g}, Kd = {c.Kd:g}) but the recorded "
+                f"controller output u implies gains {factor:.3g} times those (Kp ≈ {c.Kp * factor:.3g}); "
+                "correct the run's gains in the manifest"
+            )
+    return ref
+
+
+def prepare_runs(dataset: Dataset, T: float) -> list[GapRun]:
+    """All runs of ``dataset`` checked and on the sample grid."""
+    if not dataset.runs:
+        raise DiagnosisError(f"{dataset.root.name}: the manifest lists no runs; the diagnosis needs closed-loop runs")
+    return [_on_grid(run, T) for run in dataset.runs]
+
+
+def truncated(run: GapRun, duration: float) -> GapRun:
+    """The run's first ``duration`` seconds after the command starts (scale kept)."""
+    n = int(np.searchsorted(run.t, run.start + duration, side="right"))
+    if n >= run.n:
+        return run
+    u = None if run.u is None else run.u[:n]
+    return GapRun(run.name, run.kind, run.controller, run.t[:n], run.r[:n], run.y[:n], u, run.start, run.scale,
+                  run.noise[:n])

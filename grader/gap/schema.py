@@ -1,0 +1,145 @@
+"""The ``diagnosis.json`` schema (pydantic), stable across versions of ``grader.diagnosis/1``.
+
+Top level: ``schema``, ``dataset``, ``station``, ``inputs_sha256``, ``generated_by``,
+``baseline`` (the linear model compared against), ``noise`` (the noise floor),
+``gap`` (where the linear model and the rig disagree, per run and segment),
+``readoffs`` (the quantities students read off, measured vs predicted),
+``candidates`` (best first: effect, fitted parameters with units and 95 % intervals,
+held-out NRMSE before and after, shrink), ``verdict`` and ``notes``.
+Fit measure: NRMSE = ‖y − ŷ‖ / ‖y − mean(y)‖ per run; ``fit_percent`` = 100·(1 − NRMSE),
+the fit of MATLAB's ``compare``. Overall fit values (``gap.nrmse``, ``fit_nrmse``) are the
+root-mean-square over runs; overall held-out values (``heldout_nrmse_*``, ``shrink``) the
+geometric mean over runs, the typical run, which one unpredictable run cannot swamp.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+SCHEMA = "grader.diagnosis/1"
+SegmentName = Literal["rise", "overshoot", "settling", "steady_state", "tracking", "oscillation"]
+
+
+class _Frozen(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Value(_Frozen):
+    """A number with its unit and optional 95 % interval."""
+
+    value: float
+    unit: str
+    interval: tuple[float, float] | None = None
+
+
+class BaselineModel(_Frozen):
+    """The linear model the data are compared with, and where it came from."""
+
+    source: Literal["key", "identified", "runs"]
+    method: str
+    params: dict[str, Value]
+
+
+class NoiseFloor(_Frozen):
+    """Measurement noise as estimated from the runs."""
+
+    sigma: Value = Field(description="RMS reading noise, white noise and ADC quantisation together")
+    adc_step: Value | None = Field(None, description="position step of a quantising ADC, if the readings show one")
+    method: str
+
+
+class SegmentGap(_Frozen):
+    segment: SegmentName
+    t_start: float = Field(description="s")
+    t_end: float = Field(description="s")
+    samples: int
+    share: float = Field(ge=0, le=1, description="share of the run's squared residual")
+    rms_residual: float = Field(description="in")
+
+
+class RunGap(_Frozen):
+    run: str
+    kind: Literal["step", "ramp", "instability"]
+    nrmse: float = Field(ge=0)
+    fit_percent: float
+    rms_residual: float = Field(description="in")
+    noise_nrmse: float = Field(ge=0, description="NRMSE the noise alone would give")
+    segments: list[SegmentGap]
+
+
+class Gap(_Frozen):
+    nrmse: float = Field(ge=0, description="RMS over runs of the per-run NRMSE")
+    by_run: list[RunGap]
+
+
+class ReadOff(_Frozen):
+    """A quantity students read off a plot: measured vs predicted by the linear and augmented models."""
+
+    quantity: Literal["steady_state_error", "overshoot", "oscillation_frequency", "critical_gain"]
+    run: str
+    unit: str
+    measured: float | None
+    predicted: float | None
+    augmented: float | None = None
+
+
+class RunShrink(_Frozen):
+    run: str
+    heldout_nrmse_before: float
+    heldout_nrmse_after: float
+    shrink: float
+
+
+class Candidate(_Frozen):
+    """One candidate effect, fitted with β/Vt, Kce and Kq, scored by leave-one-run-out cross-validation."""
+
+    effect: str
+    params: dict[str, Value]
+    linear_params: dict[str, Value] = Field(description="β/Vt, Kce and Kq (the loop gain) re-fitted jointly with the effect")
+    n_params: int = Field(description="fitted parameters, β/Vt, Kce and Kq included")
+    fit_nrmse: float = Field(description="NRMSE of the fit on all runs")
+    heldout_nrmse_before: float = Field(description="held-out NRMSE of the re-fitted linear model ('none'), geometric mean over runs")
+    heldout_nrmse_after: float = Field(description="held-out NRMSE with this effect, geometric mean over runs")
+    shrink: float = Field(description="fraction of the held-out gap removed: 1 − after/before")
+    score: float = Field(description="penalised geometric-mean held-out NRMSE²; lower is better")
+    by_run: list[RunShrink]
+
+
+class Verdict(_Frozen):
+    effect: str
+    margin: float = Field(description="ln(score of the runner-up / score of the verdict); 0 = a tie")
+    runner_up: str | None
+    confidence: float = Field(ge=0, le=1, description="share of run-bootstrap resamples with the same winner")
+    indistinguishable_from: list[str] = Field(description="candidates the data cannot tell apart from the verdict")
+    second_effect: str | None = None
+    explanation: str
+
+
+class Diagnosis(_Frozen):
+    schema_: str = Field(SCHEMA, alias="schema")
+    dataset: str
+    station: str
+    inputs_sha256: str
+    generated_by: dict[str, str]
+    baseline: BaselineModel
+    noise: NoiseFloor
+    gap: Gap
+    readoffs: list[ReadOff]
+    candidates: list[Candidate]
+    verdict: Verdict
+    notes: list[str]
+
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+
+
+def diagnosis_json(d: Diagnosis) -> str:
+    """Canonical JSON text (two-space indent, keys in schema order, trailing newline)."""
+    return json.dumps(d.model_dump(mode="json", by_alias=True), indent=2, ensure_ascii=False) + "\n"
+
+
+def json_schema() -> dict[str, object]:
+    """The JSON Schema of ``diagnosis.json``."""
+    return Diagnosis.model_json_schema(by_alias=True)

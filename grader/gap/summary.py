@@ -1,0 +1,130 @@
+"""A short plain-language summary of a diagnosis, for the terminal and the report.
+
+Three answers, one paragraph each: where the linear model and the rig disagree, which
+unmodelled effect causes it, and how much better the model gets with it.
+"""
+
+from __future__ import annotations
+
+from grader.gap.schema import Candidate, Diagnosis, ReadOff, RunGap, Value
+from grader.units import ureg
+
+#: Units shown to students instead of the internal ones, and how they are written.
+DISPLAY = {"s": "ms"}
+LABELS = {"psi/in**3": "psi/in³", "in**3/s/psi": "in³/s/psi", "in**3/s/mA": "in³/s/mA", "lbf*s/in": "lbf·s/in",
+          "dimensionless": "", "%": "%"}
+#: Below these a read-off value is shown as 0 (finer than any plot shows).
+RESOLUTION = {"in": 1e-5, "%": 0.005, "Hz": 0.005}
+NAMES = {"beta_over_Vt": "β/Vt"}
+READOFF_NAMES = {"steady_state_error": "steady-state error", "overshoot": "overshoot",
+                 "oscillation_frequency": "oscillation frequency", "critical_gain": "critical gain"}
+SEGMENT_NAMES = {"rise": "the rise", "overshoot": "the overshoot", "settling": "settling",
+                 "steady_state": "steady state", "tracking": "tracking the ramp", "oscillation": "the oscillation"}
+
+
+def effect_name(effect: str) -> str:
+    """``coulomb_friction`` -> ``Coulomb friction``; ``a+b`` -> ``a + b``."""
+    text = effect.replace("_", " ").replace("+", " + ")
+    return text.replace("coulomb", "Coulomb") if text != "none" else "no effect"
+
+
+def _display(value: float, unit: str) -> tuple[float, str]:
+    """(value, label) in the student-friendly unit, e.g. 0.0015 s -> (1.5, " ms")."""
+    target = DISPLAY.get(unit, unit)
+    v = float(ureg.Quantity(value, unit).to(target).magnitude) if target != unit else value
+    label = LABELS.get(target, f"{ureg.Unit(target):~P}")
+    return v, (f" {label}" if label else "")
+
+
+def show(value: float, unit: str, digits: int = 3) -> str:
+    """A value in a student-friendly unit, e.g. 0.0015 s -> ``1.5 ms``; values below the unit's
+    read-off resolution show as 0."""
+    v, label = _display(value, unit)
+    if abs(v) < RESOLUTION.get(unit, 0.0):
+        v = 0.0
+    return f"{v:.{digits}g}{label}"
+
+
+def param_text(name: str, v: Value) -> str:
+    """``Fc = 4.2 ± 0.3 lbf`` (± half the 95 % interval)."""
+    name = NAMES.get(name, name)
+    value, label = _display(v.value, v.unit)
+    if v.interval is None:
+        return f"{name} = {value:.3g}{label}"
+    half = (_display(v.interval[1], v.unit)[0] - _display(v.interval[0], v.unit)[0]) / 2
+    return f"{name} = {value:.3g} ± {half:.2g}{label}"
+
+
+def _where(d: Diagnosis) -> str:
+    worst: RunGap = max(d.gap.by_run, key=lambda g: g.nrmse / max(g.noise_nrmse, 1e-12))
+    seg = max(worst.segments, key=lambda s: s.share)
+    ratio = worst.nrmse / max(worst.noise_nrmse, 1e-12)
+    text = (f"Where: the linear model fits the runs to {100 * (1 - d.gap.nrmse):.1f} % overall (NRMSE "
+            f"{100 * d.gap.nrmse:.2g} %). It misses most in run {worst.run} ({ratio:.1f} × the noise level), "
+            f"{100 * seg.share:.0f} % of that gap during {SEGMENT_NAMES[seg.segment]}.")
+    gaps = [r for r in d.readoffs if _relative_gap(r) > 0.1]
+    gaps.sort(key=_relative_gap, reverse=True)
+    for r in gaps[:2]:
+        text += (f" {READOFF_NAMES[r.quantity].capitalize()} in {r.run}: measured {show(r.measured or 0.0, r.unit)}, "
+                 f"the linear model predicts {show(r.predicted or 0.0, r.unit)}.")
+    return text
+
+
+def _floor(d: Diagnosis) -> float:
+    """The noise floor [in] (see :class:`grader.gap.noise.Noise`)."""
+    q = d.noise.adc_step.value if d.noise.adc_step else 0.0
+    return max(d.noise.sigma.value, q / 12**0.5)
+
+
+def _relative_gap(r: ReadOff) -> float:
+    if r.measured is None or r.predicted is None:
+        return 0.0
+    scale = max(abs(r.measured), abs(r.predicted), 1e-12)
+    floor = {"in": 5e-4, "%": 2.0, "Hz": 0.2}.get(r.unit, 0.0)
+    return 0.0 if abs(r.measured - r.predicted) < floor else abs(r.measured - r.predicted) / scale
+
+
+def _which(d: Diagnosis, best: Candidate) -> str:
+    v = d.verdict
+    if v.effect == "none":
+        text = ("Which effect: none stands out. No candidate effect explains clearly more than the measurement "
+                f"noise (about {show(_floor(d), 'in')} RMS); the linear model is as good as the data allow.")
+    else:
+        params = ", ".join(param_text(k, p) for k, p in best.params.items())
+        runner = effect_name(v.runner_up or "none")
+        text = (f"Which effect: {effect_name(v.effect)}{f' ({params})' if params else ''}. It beats the runner-up, "
+                f"{runner}, by a margin of {v.margin:.2g} (log ratio of held-out scores); in "
+                f"{100 * v.confidence:.0f} % of resamples of the runs it stays the answer.")
+    if v.indistinguishable_from:
+        others = ", ".join(effect_name(e) for e in v.indistinguishable_from)
+        text += f" The data cannot tell it apart from: {others}."
+    combo = _combination(d)
+    if v.second_effect and combo is not None:
+        params = ", ".join(param_text(k, p) for k, p in combo.params.items())
+        text += f" On top of it, {effect_name(v.second_effect)} explains clearly more ({params})."
+    return text
+
+
+def _combination(d: Diagnosis) -> Candidate | None:
+    """The candidate with the verdict's second effect added, if the diagnosis has one."""
+    return next((c for c in d.candidates if "+" in c.effect), None)
+
+
+def _how_far(d: Diagnosis, best: Candidate) -> str:
+    if d.verdict.effect == "none":
+        return (f"How far it shrinks: nothing to add. The re-fitted linear model predicts a typical left-out run "
+                f"with an NRMSE of {100 * best.heldout_nrmse_before:.2g} %.")
+    text = (f"How far it shrinks: adding {effect_name(best.effect)} to the model removes "
+            f"{100 * best.shrink:.0f} % of the gap on a typical run left out of the fit (NRMSE "
+            f"{100 * best.heldout_nrmse_before:.2g} % → {100 * best.heldout_nrmse_after:.2g} %, geometric mean over runs).")
+    combo = _combination(d)
+    if combo is not None:
+        text += f" With {effect_name(d.verdict.second_effect or '')} too: {100 * combo.shrink:.0f} %."
+    return text
+
+
+def summary(d: Diagnosis) -> str:
+    """The plain-language summary (a few short paragraphs)."""
+    best = d.candidates[0]
+    head = f"Sim-to-real diagnosis of {d.dataset} (station {d.station}; linear model: {d.baseline.method})."
+    return "\n\n".join([head, _where(d), _which(d, best), _how_far(d, best)])
