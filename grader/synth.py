@@ -79,18 +79,19 @@ class RunPlan:
     start: float = 0.1  # command starts [s]
 
 
-def _grows(y: Array, t: Array, start: float) -> NDArray[np.bool_]:
-    """Runs whose oscillation at the end is clearly larger than just after the step."""
+def _sustained(y: Array, t: Array, start: float) -> NDArray[np.bool_]:
+    """Runs whose oscillation at the end has not decayed: grown, or a limit cycle of at least
+    0.02 in (a loop that jumps straight into a saturated limit cycle is unstable too)."""
     early = np.ptp(y[:, (t >= start + 0.1) & (t < start + 0.3)], axis=1)
     late = np.ptp(y[:, t >= t[-1] - 0.2], axis=1)
-    return late > 1.25 * early
+    return (late > 1.25 * early) | ((late > 0.9 * early) & (late > 0.02))
 
 
 def instability_gain(p: RigParams, effects: EffectSet, *, duration: float = 2.0) -> float:
-    """The P gain (volts convention, on a 0.5 grid) at which the rig's step response first grows
-    into oscillation: the gain raised slowly until the system goes unstable, as students do.
-    Noise is left out of the search; if no gain up to 3x the linear critical gain is unstable,
-    that bound is returned."""
+    """The P gain (volts convention, on a 0.5 grid) at which the rig's step response first
+    oscillates without decaying: the gain raised slowly until the system goes unstable, as
+    students do. Noise is left out of the search; if no gain up to 3x the linear critical gain
+    is unstable, that bound is returned."""
     quiet = effects.without("sensor_noise") if "sensor_noise" in effects else effects
     t = np.round(np.arange(0.0, duration + 1e-9, p.sample_time), 9)
     r = np.where(t >= 0.1, INSTABILITY_STEP, 0.0)
@@ -98,12 +99,12 @@ def instability_gain(p: RigParams, effects: EffectSet, *, duration: float = 2.0)
 
     def first_unstable(gains: Array) -> float | None:
         y, _ = simulate_rig_batch(p, [Controller(float(k) * scale) for k in gains], t, r, quiet)
-        unstable = np.flatnonzero(_grows(y, t, 0.1))
+        unstable = np.flatnonzero(_sustained(y, t, 0.1))
         return float(gains[unstable[0]]) if unstable.size else None
 
     k_lin = discrete_critical_gain(p)
     step = float(max(1.0, np.ceil(0.05 * k_lin)))
-    coarse = np.arange(np.floor(0.4 * k_lin) / 2, 3.0 * k_lin + step, step)
+    coarse = np.arange(max(0.5, np.floor(0.2 * k_lin)), 3.0 * k_lin + step, step)
     first = first_unstable(coarse)
     if first is None:
         return float(coarse[-1])

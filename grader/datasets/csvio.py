@@ -22,6 +22,11 @@ _HEADER = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*\[(.+)\]\s*$")
 Table = dict[str, NDArray[np.float64]]
 
 
+def _clip(text: str, n: int = 40) -> str:
+    """Echo at most ``n`` characters of untrusted text in a message."""
+    return text if len(text) <= n else text[:n] + "…"
+
+
 def _parse_header(path: Path, cells: list[str], spec: TableSpec) -> list[tuple[str, float, str]]:
     """(column name, scale to internal, internal unit) for each header cell."""
     out = []
@@ -29,7 +34,7 @@ def _parse_header(path: Path, cells: list[str], spec: TableSpec) -> list[tuple[s
     for col, cell in enumerate(cells, start=1):
         m = _HEADER.match(cell)
         if not m:
-            raise DatasetError(f"{path.name}: header cell {col} {cell!r} must look like 'name [unit]', e.g. 't [s]'")
+            raise DatasetError(f"{path.name}: header cell {col} {_clip(cell)!r} must look like 'name [unit]', e.g. 't [s]'")
         name, unit_text = m.group(1), m.group(2).strip()
         if name not in wanted:
             out.append((name, math.nan, ""))
@@ -46,7 +51,7 @@ def _parse_header(path: Path, cells: list[str], spec: TableSpec) -> list[tuple[s
         out.append((name, scale, wanted[name]))
     missing = [c for c in spec.required if c not in {n for n, _, _ in out}]
     if missing:
-        raise DatasetError(f"{path.name}: missing column(s) {', '.join(missing)} (header has {', '.join(cells)})")
+        raise DatasetError(f"{path.name}: missing column(s) {', '.join(missing)} (header has {_clip(', '.join(cells))})")
     names = [n for n, _, _ in out]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
@@ -56,6 +61,8 @@ def _parse_header(path: Path, cells: list[str], spec: TableSpec) -> list[tuple[s
 
 def read_table(path: Path, spec: TableSpec) -> Table:
     """Read a CSV into internal-unit arrays; raises DatasetError naming file, row and column."""
+    if path.is_symlink():
+        raise DatasetError(f"{path.name}: is a symbolic link; dataset files must be regular files in the folder")
     if not path.is_file():
         raise DatasetError(f"{path.name}: file not found in {path.parent}")
     if path.stat().st_size > MAX_BYTES:
@@ -89,9 +96,9 @@ def _convert(path: Path, header: list[tuple[str, float, str]], body: list[list[s
             try:
                 value = float(cell)
             except ValueError:
-                raise DatasetError(f"{path.name}: row {line}, column {header[j][0]!r}: {cell!r} is not a number") from None
+                raise DatasetError(f"{path.name}: row {line}, column {header[j][0]!r}: {_clip(cell)!r} is not a number") from None
             if not math.isfinite(value):
-                raise DatasetError(f"{path.name}: row {line}, column {header[j][0]!r}: {cell!r} is not a finite number")
+                raise DatasetError(f"{path.name}: row {line}, column {header[j][0]!r}: {_clip(cell)!r} is not a finite number")
             data[i, j] = value
     return {name: data[:, j] * scale for j, (name, scale, _) in enumerate(header) if not math.isnan(scale)}
 

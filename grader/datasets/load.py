@@ -72,6 +72,8 @@ def read_manifest(root: Path) -> tuple[Manifest, Path]:
     path = next((root / n for n in MANIFEST_NAMES if (root / n).is_file()), None)
     if path is None:
         raise DatasetError(f"{root}: no manifest.json or manifest.yaml")
+    if path.is_symlink():
+        raise DatasetError(f"{path.name}: is a symbolic link; the manifest must be a regular file")
     if path.stat().st_size > MAX_MANIFEST_BYTES:
         raise DatasetError(f"{path.name}: manifest larger than 1 MB")
     try:

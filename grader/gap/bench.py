@@ -31,11 +31,8 @@ import numpy as np
 
 from grader.gap.candidates import NONE, physical_effects
 from grader.model.effects import EFFECTS, EffectSet
-from grader.model.params import Controller, RigParams
-from grader.model.rig import simulate_rig_batch
-from grader.model.sampled import discrete_critical_gain
 from grader.stations import Station, load_station
-from grader.synth import INSTABILITY_STEP, TRUTH_FILE, RunPlan, make_dataset
+from grader.synth import TRUTH_FILE, make_dataset
 
 SWEEP = (1.0, 0.5, 0.25, 0.125, 0.0625)
 #: Magnitudes are drawn log-uniformly from [top/RANGE_SPAN, top] when the realistic range starts at 0.
@@ -85,47 +82,6 @@ def effect_params(name: str, rng: np.random.Generator, strength: float | None = 
     return out
 
 
-def _sustained(y: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Runs whose oscillation at the end has not decayed: grown, or a limit cycle of at least 0.02 in."""
-    early = np.ptp(y[:, (t >= 0.2) & (t < 0.4)], axis=1)
-    late = np.ptp(y[:, t >= t[-1] - 0.2], axis=1)
-    return (late > 1.25 * early) | ((late > 0.9 * early) & (late > 0.02))
-
-
-def unstable_gain(p: RigParams, effects: EffectSet) -> float:
-    """The first P gain (on a 0.5 grid) whose step response oscillates without decaying, as students find
-    it raising the gain slowly (noise left out). Unlike a pure growth test, a loop that jumps straight into
-    a saturated limit cycle counts as unstable."""
-    quiet = effects.without("sensor_noise") if "sensor_noise" in effects else effects
-    t = np.round(np.arange(0.0, 2.0 + 1e-9, p.sample_time), 9)
-    r = np.where(t >= 0.1, INSTABILITY_STEP, 0.0)
-
-    def first(gains: np.ndarray) -> float | None:
-        y, _ = simulate_rig_batch(p, [Controller(float(k)) for k in gains], t, r, quiet)
-        hit = np.flatnonzero(_sustained(y, t))
-        return float(gains[hit[0]]) if hit.size else None
-
-    k_lin = discrete_critical_gain(p)
-    step = float(max(1.0, np.ceil(0.05 * k_lin)))
-    coarse = first(np.arange(max(0.5, np.floor(0.2 * k_lin)), 3.0 * k_lin + step, step))
-    if coarse is None:
-        return float(np.ceil(3.0 * k_lin))
-    return first(np.arange(max(coarse - step + 0.5, 0.5), coarse, 0.5)) or coarse
-
-
-def bench_runs(p: RigParams, effects: EffectSet) -> list[RunPlan]:
-    """The paper's six runs (volts feedback), the instability run at :func:`unstable_gain`."""
-    return [
-        RunPlan("step_kp10", "step", Controller(10)),
-        RunPlan("step_kp25", "step", Controller(25)),
-        RunPlan("step_kp46", "step", Controller(46)),
-        RunPlan("instability", "instability", Controller(unstable_gain(p, effects)), amplitude=INSTABILITY_STEP,
-                duration=2.0),
-        RunPlan("ramp_p", "ramp", Controller(10), amplitude=1.0),
-        RunPlan("ramp_pi", "ramp", Controller(10, Ki=20), amplitude=1.0),
-    ]
-
-
 @dataclass(frozen=True)
 class Case:
     """One benchmark dataset's outcome."""
@@ -166,7 +122,7 @@ def _one(station: Station, truth: str, params: dict[str, float], folder: Path, s
     if truth != NONE:
         effects[truth] = params
     eff = EffectSet(effects)
-    make_dataset(station, folder, seed=seed, effects=eff, runs=bench_runs(station.params(), eff))
+    make_dataset(station, folder, seed=seed, effects=eff)
     truth_file = folder.parent / f"{folder.name}.truth.json"  # blind: the truth stays with the benchmark
     (folder / TRUTH_FILE).replace(truth_file)
     data = json.loads(truth_file.read_text(encoding="utf-8"))

@@ -76,6 +76,7 @@ def read_all(paths: Sequence[Path], opts: GradeOptions) -> list[Read]:
 def _inline_dataset(sub: Submission, data: InlineData, root: Path) -> Path:
     """Write a group's sheets as a dataset folder (given and feedback from the station file)."""
     station = load_station(sub.station)
+    root.mkdir(parents=True, exist_ok=True)
     for name, text in data.files.items():
         (root / name).write_text(text, encoding="utf-8")
     manifest = {"station": station.station, "given": station.given.model_dump(exclude_none=True),

@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from grader.errors import UnitError
-from grader.units import parse_quantity, parse_unit, quantity_to_float, ureg
+from grader.units import parse_quantity, parse_unit, quantity_to_float, to_float, ureg
 
 
 @pytest.mark.parametrize(
@@ -32,7 +32,7 @@ def test_parse_and_convert(text: str | int, unit: str, expected: float) -> None:
         ("", "empty"),
         ("x" * 500, "longer than"),
         ("__import__('os')", "not allowed"),
-        ("2 m**99999999", "too large"),
+        ("2 m**99999999", "small whole power"),
         ("1" * 60 + " m", "too large"),
         ("3 blargs", "cannot parse"),
         ("nan m", "finite"),
@@ -61,3 +61,17 @@ def test_any_text_either_parses_or_raises_unit_error(text: str) -> None:
         parse_quantity(text)
     except UnitError:
         pass
+
+
+@pytest.mark.parametrize("text", ["9^9^9 in^3/s/mA", "2**99**9", "99**99**99 in", "1 m**13", "10**3 m", "2 s^(9^9)"])
+def test_powers_are_limited_to_units_raised_to_small_integers(text: str) -> None:
+    with pytest.raises(UnitError, match="small whole power"):
+        parse_quantity(text)
+
+
+@pytest.mark.parametrize("text", ["0.03851 %%", "0.03851*ppm", "58 percent"])
+def test_dimensionless_units_are_not_dropped(text: str) -> None:
+    """A written dimensionless unit is kept (and so is a wrong dimension), unlike a bare number."""
+    with pytest.raises(UnitError, match="dimension"):
+        to_float(parse_quantity(text, default_unit="in**3/s/mA"), "in**3/s/mA")
+    assert to_float(parse_quantity("0.03851", default_unit="in**3/s/mA"), "in**3/s/mA") == 0.03851

@@ -139,3 +139,20 @@ def test_arbitrary_header_never_crashes(tmp_path_factory: pytest.TempPathFactory
         read_table(path, CALIBRATION)
     except DatasetError as exc:
         assert "c.csv" in str(exc)
+
+
+def test_symlinked_files_are_refused_and_never_echoed(ds: Path) -> None:
+    secret = ds.parent / "secret.txt"
+    secret.write_text("root:x:0:0:root:/root:/bin/bash\n")
+    (ds / "calibration.csv").unlink()
+    (ds / "calibration.csv").symlink_to(secret)
+    with pytest.raises(DatasetError) as exc:
+        load(ds)
+    assert "symbolic link" in str(exc.value) and "root:x" not in str(exc.value)
+
+
+def test_long_bad_cells_are_clipped_in_messages(ds: Path) -> None:
+    _replace_header(ds, "friction.csv", "x" * 500 + ",force [lbf]")
+    with pytest.raises(DatasetError) as exc:
+        load(ds)
+    assert len(str(exc.value)) < 200

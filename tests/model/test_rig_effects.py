@@ -124,9 +124,10 @@ def test_delay_lowers_the_gain_at_which_oscillation_starts(p: RigParams) -> None
     without = instability_gain(p, EffectSet())
     with_delay = instability_gain(p, EffectSet.parse(["sampling_delay:delay=2ms"]))
     assert with_delay <= without - 2.0
-    # the first growing run on the 0.5 grid sits just above the linear loop's critical gain
-    assert 0 <= without - _critical_gain_with_delay(p, 0) <= 1.0
-    assert 0 <= with_delay - _critical_gain_with_delay(p, 2) <= 1.0
+    # the first non-decaying run on the 0.5 grid sits within one grid step of the linear loop's
+    # critical gain (just below it, a barely damped oscillation does not visibly decay in 2 s)
+    assert -0.5 <= without - _critical_gain_with_delay(p, 0) <= 1.0
+    assert -0.5 <= with_delay - _critical_gain_with_delay(p, 2) <= 1.0
 
 
 def test_deadband_stops_the_loop_where_the_current_enters_the_overlap(p: RigParams) -> None:
