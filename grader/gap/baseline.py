@@ -26,7 +26,6 @@ from scipy.optimize import least_squares
 
 from grader.datasets import Dataset
 from grader.errors import DiagnosisError, GraderError, IdentificationError
-from grader.gap import linsim
 from grader.gap.runs import GapRun, control_law
 from grader.identify import (
     FlowGainFit,
@@ -37,6 +36,7 @@ from grader.identify import (
     match_sampled_poles,
 )
 from grader.keys import read_key
+from grader.model import zloop
 from grader.model.params import RigParams
 from grader.model.rig_setup import DAC_LIMIT
 
@@ -111,7 +111,7 @@ def fit_loop(runs: Sequence[GapRun], p0: RigParams, *, fit_kq: bool) -> RigParam
         for run, n in zip(runs, spans):
             if n < 20:
                 continue
-            y = linsim.simulate_grid(p, run.controller, run.r[:n])
+            y = zloop.response(p, run.controller, run.r[:n] - run.r[0]) + run.r[0]
             parts.append((y - run.y[:n]) / (run.scale * np.sqrt(n)))
         return np.concatenate(parts) if parts else np.zeros(1)
 

@@ -11,8 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from grader.errors import ModelError
-from grader.gap import linsim, metrics
+from grader.gap import metrics
 from grader.gap.baseline import Baseline
 from grader.gap.candidates import LINEAR, N_LINEAR
 from grader.gap.crossval import CrossValidation
@@ -32,6 +31,7 @@ from grader.gap.schema import (
 )
 from grader.gap.segments import Segment, shares
 from grader.keys import MODEL_UNITS
+from grader.model import zloop
 
 Array = NDArray[np.float64]
 
@@ -99,10 +99,8 @@ def readoffs(runs: Sequence[GapRun], y_lin: Sequence[Array], y_aug: Sequence[Arr
 
 def critical_gain(b: Baseline) -> float | None:
     """The baseline's sampled-loop critical gain, or None if it has none."""
-    try:
-        return linsim.critical_gain(b.params)
-    except ModelError:
-        return None
+    k = zloop.critical_gain(b.params)
+    return k if np.isfinite(k) else None
 
 
 def candidate(state: FitState, cv: CrossValidation, before: CrossValidation, score: float, runs: Sequence[GapRun],

@@ -55,7 +55,7 @@ def run_figure(run: GapRun, segs: list[Segment], y_lin: Array, y_aug: Array, eff
     bottom.plot(t, 1e3 * (y_lin - run.y), color=LINEAR, lw=0.8, label="linear − measured")
     bottom.plot(t, 1e3 * (y_aug - run.y), color=AUGMENTED, lw=0.8, label=f"{aug_label} − measured")
     bottom.axhline(0.0, color="#999999", lw=0.6)
-    bottom.set_ylabel("residual [mil]")
+    bottom.set_ylabel("residual [mil = 0.001 in]")
     bottom.set_xlabel("time [s]")
     bottom.legend(fontsize=7, loc="upper right", framealpha=0.9)
     fig.tight_layout()

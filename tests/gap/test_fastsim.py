@@ -8,7 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import linalg
 
-from grader.gap import fastsim, linsim
+from grader.gap import fastsim
+from grader.model import zloop
 from grader.model.effects import EffectSet
 from grader.model.params import Controller
 from grader.model.rig import simulate_rig
@@ -57,7 +58,7 @@ def test_linear_filter_is_the_sampled_loop(station: Station) -> None:
     p = station.params()
     t, r = _step(p.sample_time)
     for c in (Controller(25), Controller(10, Ki=20, Kd=0.02)):
-        np.testing.assert_allclose(linsim.simulate_grid(p, c, r), simulate(p, c, t, r).y, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(zloop.response(p, c, r), simulate(p, c, t, r).y, rtol=0, atol=1e-9)
 
 
 def test_batch_of_mixed_runs_equals_runs_alone(station: Station) -> None:
@@ -95,4 +96,4 @@ def test_expm_batch_matches_scipy(scale: float, seed: int) -> None:
 @given(st.floats(1e4, 4e4), st.floats(2e-4, 2e-3), st.floats(0.5, 2.0))
 def test_fast_critical_gain_matches_python_control(station: Station, bv: float, kce: float, kpot: float) -> None:
     p = station.params().with_(beta_over_Vt=bv, Kce=kce, Kpot=kpot)
-    assert linsim.critical_gain(p) == pytest.approx(discrete_critical_gain(p), rel=1e-6)
+    assert zloop.critical_gain(p) == pytest.approx(discrete_critical_gain(p), rel=1e-6)
