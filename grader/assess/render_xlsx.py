@@ -21,6 +21,7 @@ from grader.assess.views import (
     survey_most_useful,
     survey_summary,
 )
+from grader.exports.cells import literal_text
 
 _FORMATS = {"int": "0", "pct": "0.0", "num": "0.000", "p": "0.0000", "text": "@"}
 _BOLD = Font(bold=True)
@@ -109,7 +110,7 @@ def write_survey_xlsx(report: SurveyReport, images: Mapping[str, bytes], path: P
     row = _write_paragraphs(notes, "What these data can and cannot show", report.limitations, 1)
     _write_paragraphs(notes, "Data notes", report.notes, row)
     notes.column_dimensions["A"].width = 120
-    workbook.save(path)
+    literal_text(workbook).save(path)
 
 
 def write_exam_xlsx(report: ExamReport, images: Mapping[str, bytes], path: Path) -> None:
@@ -126,4 +127,4 @@ def write_exam_xlsx(report: ExamReport, images: Mapping[str, bytes], path: Path)
     _write_paragraphs(text, "Notes", report.notes, row)
     text.column_dimensions["A"].width = 140
     _image_sheet(workbook, "Chart", [images["exam"]])
-    workbook.save(path)
+    literal_text(workbook).save(path)

@@ -70,15 +70,39 @@ def _read_csv(path: Path) -> list[list[str]]:
         raise AssessmentError(f"{path.name}: not a valid CSV file ({exc})") from exc
 
 
+MAX_XLSX_BYTES = 20_000_000  # the workbook file
+MAX_XLSX_UNZIPPED = 200_000_000  # what it unpacks to
+MAX_ROWS = 20_000
+MAX_COLS = 500
+
+
 def _read_xlsx(path: Path) -> list[list[str]]:
+    """The first sheet's cells as text, bounded: file size, unpacked size, rows and columns."""
     from openpyxl import load_workbook
     from openpyxl.utils.exceptions import InvalidFileException
 
     try:
+        size = path.stat().st_size
+        if size > MAX_XLSX_BYTES:
+            raise AssessmentError(f"{path.name}: file is {size / 1e6:.1f} MB; the limit is {MAX_XLSX_BYTES / 1e6:g} MB")
+        with zipfile.ZipFile(path) as archive:
+            if sum(i.file_size for i in archive.infolist()) > MAX_XLSX_UNZIPPED:
+                raise AssessmentError(f"{path.name}: workbook unpacks to more than {MAX_XLSX_UNZIPPED / 1e6:g} MB")
         workbook = load_workbook(path, read_only=True, data_only=True)
         try:
             sheet = workbook.worksheets[0]
-            return [[_cell_text(value) for value in row] for row in sheet.iter_rows(values_only=True)]
+            rows: list[list[str]] = []
+            # one row and one column past the caps, to tell "exactly at the limit" from "beyond it"
+            for n, row in enumerate(sheet.iter_rows(max_row=MAX_ROWS + 1, max_col=MAX_COLS + 1, values_only=True)):
+                cells = [_cell_text(value) for value in row]
+                while cells and not cells[-1]:
+                    cells.pop()  # trailing empty cells (a far-away stray cell pads every row)
+                if len(cells) > MAX_COLS:
+                    raise AssessmentError(f"{path.name}: more than {MAX_COLS} columns in row {n + 1}")
+                if n >= MAX_ROWS and cells:
+                    raise AssessmentError(f"{path.name}: more than {MAX_ROWS} rows")
+                rows.append(cells)
+            return rows[:MAX_ROWS]
         finally:
             workbook.close()
     except (OSError, zipfile.BadZipFile, InvalidFileException, ElementTree.ParseError,

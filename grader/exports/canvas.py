@@ -6,6 +6,7 @@ import csv
 import io
 from collections.abc import Iterable
 
+from grader.exports.cells import csv_text
 from grader.grading.results import SubmissionResult
 
 HEADER = ("Student", "ID", "SIS User ID", "SIS Login ID", "Section")
@@ -20,10 +21,11 @@ def canvas_csv(results: Iterable[SubmissionResult], *, assignment: str, assignme
     """The CSV text; a submission without readable students still gets a row (named after its id)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow((*HEADER, f"{assignment} ({assignment_id})"))
+    w.writerow((*HEADER, csv_text(f"{assignment} ({assignment_id})")))
     for r in sorted(results, key=lambda r: r.submission_id):
         if not r.students:
-            w.writerow((f"(no student listed in submission {r.submission_id})", "", "", "", "", score_text(r.score)))
+            w.writerow((f"(no student listed in submission {csv_text(r.submission_id)})", "", "", "", "", score_text(r.score)))
         for s in r.students:
-            w.writerow((s.name, s.canvas_id, s.sis_user_id, s.login_id, s.section, score_text(r.score)))
+            w.writerow((*(csv_text(v) for v in (s.name, s.canvas_id, s.sis_user_id, s.login_id, s.section)),
+                        score_text(r.score)))
     return buf.getvalue()

@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from openpyxl import Workbook
 from openpyxl.styles import Font
 
+from grader.exports.cells import literal_text
 from grader.grading.results import STATUSES, SubmissionResult
 
 BOLD = Font(bold=True)
@@ -61,4 +62,4 @@ def gradebook(results: Sequence[SubmissionResult], items: list[str]) -> Workbook
     for ws in wb.worksheets:
         for cell in ws[1]:
             cell.font = BOLD
-    return wb
+    return literal_text(wb)

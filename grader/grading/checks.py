@@ -154,7 +154,7 @@ def check_quantity(name: str, raw: Any, env: CheckEnv, done: Mapping[str, ItemRe
 # ------------------------------------------------------------------ expressions
 @lru_cache(maxsize=4096)
 def tf_verdict(form: str, convention: Feedback, text: str, codes: tuple[str, ...],
-               limits: Limits) -> tuple[str, str | None, tuple[str, ...]]:
+               limits: Limits, reveal: bool = True) -> tuple[str, str | None, tuple[str, ...]]:
     """(status, mistake code, notes) of a transfer-function answer; ``invalid`` carries the reason.
     Pure in its arguments, hence cached (many students submit the same text)."""
     ref = tf.reference(form, convention)
@@ -168,9 +168,17 @@ def tf_verdict(form: str, convention: Feedback, text: str, codes: tuple[str, ...
             for code, wrong in wrongs:
                 if tf.equivalent(form, answer, wrong):
                     return "known_mistake", code, ()
-            return "incorrect", None, tuple(tf.diagnose(form, answer, ref, expr.symbols, tf.reference_symbols(form, convention)))
+            return "incorrect", None, tuple(tf.diagnose(form, answer, ref, expr.symbols,
+                                                        tf.reference_symbols(form, convention), reveal=reveal))
     except ExpressionError as exc:
         return "invalid", None, (str(exc),)
+    except Exception as exc:  # noqa: BLE001 - an unexpected failure invalidates only this answer
+        return "invalid", None, (unchecked_reason(exc),)
+
+
+def unchecked_reason(exc: BaseException) -> str:
+    """The generic, student-facing reason for an answer whose check failed unexpectedly."""
+    return f"this answer could not be checked: {type(exc).__name__}"
 
 
 def check_expression(name: str, raw: Any, env: CheckEnv) -> ItemResult:
@@ -182,7 +190,7 @@ def check_expression(name: str, raw: Any, env: CheckEnv) -> ItemResult:
                   else f"expression longer than {env.limits.max_string} characters")
         return result(name, item, "invalid", 0.0, fb.invalid(name, reason), detail={"error": reason})
     codes = tuple(m.code for m in item.mistakes)
-    status, code, notes = tf_verdict(name, env.convention, raw, codes, env.limits)
+    status, code, notes = tf_verdict(name, env.convention, raw, codes, env.limits, env.reveal)
     detail: dict[str, Any] = {"convention": env.convention}
     if status == "correct":
         return result(name, item, "correct", 1.0, f"{fb.name(name)}: correct (equivalent to the model's).", detail=detail)
@@ -191,6 +199,8 @@ def check_expression(name: str, raw: Any, env: CheckEnv) -> ItemResult:
         return result(name, item, "known_mistake", credit, f"{fb.name(name)}: {mistake_text(item, code)}",
                       mistake=code, detail=detail)
     if status == "invalid":
-        return result(name, item, "invalid", 0.0, fb.invalid(name, notes[0]), detail={"error": notes[0]})
+        text = (f"{fb.name(name)}: {notes[0]}." if notes[0].startswith("this answer could not be checked")
+                else fb.invalid(name, notes[0]))
+        return result(name, item, "invalid", 0.0, text, detail={"error": notes[0]})
     text = f"{fb.name(name)} is not equivalent to the model's ({env.convention} feedback convention): " + "; ".join(notes) + "."
     return result(name, item, "incorrect", 0.0, text, detail={**detail, "differences": list(notes)})

@@ -63,6 +63,8 @@ class RatFunc:
         return RatFunc(self.num * o.den, self.den * o.num)
 
     def __pow__(self, n: int) -> RatFunc:
+        if n == 0 and not self.num:
+            raise ExpressionError("0**0 is undefined")
         if n < 0:
             if not self.num:
                 raise ExpressionError("division by zero")
@@ -111,9 +113,14 @@ def _number(node: ast.Constant, limits: Limits) -> Fraction:
     v = node.value
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise ExpressionError(f"{v!r} is not allowed (only numbers and the course's symbols)")
+    if isinstance(v, int):
+        # never convert a huge int to float (OverflowError) nor repr it (int-digit limit)
+        if v.bit_length() > 64 or abs(v) > limits.max_number:
+            raise ExpressionError("number is out of range (too large)")
+        return Fraction(v)
     if not math.isfinite(v) or abs(v) > limits.max_number:
         raise ExpressionError(f"number {v!r} is out of range")
-    return Fraction(v) if isinstance(v, int) else Fraction(repr(v))
+    return Fraction(repr(v))
 
 
 def _exponent(node: ast.expr) -> int:
@@ -124,6 +131,10 @@ def _exponent(node: ast.expr) -> int:
     if not (isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and not isinstance(node.value, bool)):
         raise ExpressionError("exponents must be whole numbers written as numbers, e.g. s**2")
     v = node.value
+    if isinstance(v, int):
+        if v.bit_length() > 64:
+            raise ExpressionError("exponent is out of range (too large)")
+        return sign * v
     if not math.isfinite(v) or v != int(v):
         raise ExpressionError(f"exponent {v!r} is not a whole number")
     return sign * int(v)

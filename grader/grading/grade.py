@@ -9,7 +9,14 @@ from typing import Any
 from grader.errors import GraderError, RubricError
 from grader.grading import feedback as fb
 from grader.grading.answers import Gains
-from grader.grading.checks import CheckEnv, check_expression, check_quantity, needs_key, result
+from grader.grading.checks import (
+    CheckEnv,
+    check_expression,
+    check_quantity,
+    needs_key,
+    result,
+    unchecked_reason,
+)
 from grader.grading.context import KeyContext
 from grader.grading.designs import RigCase, RigVerdict, rig_verdict
 from grader.grading.items import ITEMS
@@ -84,6 +91,9 @@ def _check(name: str, raw: Any, env: CheckEnv, done: Mapping[str, ItemResult]) -
         return check_design(name, raw, env)
     except GraderError as exc:
         return result(name, item, "invalid", 0.0, fb.invalid(name, str(exc)), detail={"error": str(exc)})
+    except Exception as exc:  # noqa: BLE001 - an unexpected failure invalidates only this item
+        why = unchecked_reason(exc)
+        return result(name, item, "invalid", 0.0, f"{fb.name(name)}: {why}.", detail={"error": why})
 
 
 def grade_submission(sub: Submission, kc: KeyContext | None, opts: GradeOptions, *,

@@ -62,13 +62,12 @@ def read_all(paths: Sequence[Path], opts: GradeOptions) -> list[Read]:
             error = f"internal error reading it ({type(exc).__name__})"
             sub = invalid_submission(fallback_id(path), str(path), error, opts.rubric)
         sid = sub.submission_id
-        if sid in seen:
-            unique = next(f"{sid}~{n}" for n in range(2, len(paths) + 2) if f"{sid}~{n}" not in seen)
-            error = f"duplicate submission_id {sid!r} (also in {seen[sid].name}); rename one"
-            students = sub.students
-            sub = invalid_submission(unique, str(path), error, opts.rubric, students)
+        if sid.casefold() in seen:  # case-insensitively: output file names must not collide on any OS
+            unique = next(f"{sid}~{n}" for n in range(2, len(paths) + 2) if f"{sid}~{n}".casefold() not in seen)
+            error = f"duplicate submission_id {sid!r} (also in {seen[sid.casefold()].name}); rename one"
+            sub = invalid_submission(unique, str(path), error, opts.rubric, sub.students)
             sid = unique
-        seen[sid] = path
+        seen[sid.casefold()] = path
         out.append(sub)
     return out
 

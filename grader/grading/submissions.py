@@ -25,7 +25,13 @@ from grader.grading.items import ITEMS
 from grader.grading.limits import DEFAULT_LIMITS, Limits
 from grader.grading.results import Student
 
-SAFE_ID = re.compile(r"^[A-Za-z0-9_.\-]{1,64}$")
+SAFE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$")  # use with fullmatch (``$`` alone allows a trailing newline)
+
+
+def safe_id(text: str) -> bool:
+    """True for a submission id that is safe as a file name: a letter or digit, then up to 63 of
+    letters, digits, ``_ . -``."""
+    return SAFE_ID.fullmatch(text) is not None
 SUFFIXES = (".json", ".yaml", ".yml", ".xlsx")
 
 
@@ -84,7 +90,7 @@ class Submission:
 
 def fallback_id(path: Path) -> str:
     """A safe submission id from a file name (for files that cannot be read)."""
-    stem = re.sub(r"[^A-Za-z0-9_.\-]", "_", path.stem)[:64].strip(".") or "submission"
+    stem = re.sub(r"[^A-Za-z0-9_.\-]", "_", path.stem)[:64].lstrip("_.-").rstrip(".") or "submission"
     return stem
 
 
@@ -111,6 +117,8 @@ def _load_text(path: Path, limits: Limits) -> Any:
             raise SubmissionError(f"{path.name}: not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}") from None
         except RecursionError:
             raise SubmissionError(f"{path.name}: JSON nested too deeply") from None
+        except ValueError:  # e.g. an integer beyond Python's int-digit limit
+            raise SubmissionError(f"{path.name}: not valid JSON: a number is too long (write it with fewer digits)") from None
     return _safe_yaml(path.name, text, limits)
 
 
@@ -126,6 +134,8 @@ def _safe_yaml(name: str, text: str, limits: Limits) -> Any:
     except yaml.YAMLError as exc:
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise SubmissionError(f"{name}: not valid YAML: {first}") from None
+    except ValueError:  # e.g. an integer beyond Python's int-digit limit
+        raise SubmissionError(f"{name}: not valid YAML: a number is too long (write it with fewer digits)") from None
     except RecursionError:
         raise SubmissionError(f"{name}: YAML nested too deeply") from None
 

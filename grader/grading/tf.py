@@ -150,8 +150,9 @@ def _term_name(k: int) -> str:
     return {0: "the constant term (s^0)", 1: "the s coefficient"}.get(k, f"the s^{k} coefficient")
 
 
-def coefficient_report(answer_poly: PolyElement, ref_poly: PolyElement) -> list[str]:
-    """How the monic characteristic polynomials differ, coefficient by coefficient (highest first)."""
+def coefficient_report(answer_poly: PolyElement, ref_poly: PolyElement, *, reveal: bool = True) -> list[str]:
+    """How the monic characteristic polynomials differ, coefficient by coefficient (highest first).
+    Without ``reveal`` only which coefficients differ (no factors, terms or symbols of the model)."""
     da, dr = answer_poly.degree(_S), ref_poly.degree(_S)
     if da != dr:
         return [f"your characteristic polynomial is of degree {da} in s; the loop's is of degree {dr}"]
@@ -161,7 +162,9 @@ def coefficient_report(answer_poly: PolyElement, ref_poly: PolyElement) -> list[
         a, r = answer_poly.coeff_wrt(_S, k), ref_poly.coeff_wrt(_S, k)
         if a * lr == r * la:
             continue
-        if not a:
+        if not reveal:
+            out.append(f"{_term_name(k)} of the characteristic polynomial differs from the model's")
+        elif not a:
             out.append(f"{_term_name(k)} is missing")
         elif not r:
             out.append(f"{_term_name(k)} should not be there")
@@ -173,17 +176,22 @@ def coefficient_report(answer_poly: PolyElement, ref_poly: PolyElement) -> list[
 
 
 def diagnose(form: str, answer: RatFunc, ref: RatFunc, answer_symbols: frozenset[str],
-             ref_symbols: frozenset[str]) -> list[str]:
-    """Student-facing sentences on what differs (no reference expression is quoted)."""
+             ref_symbols: frozenset[str], *, reveal: bool = True) -> list[str]:
+    """Student-facing sentences on what differs (no reference expression is quoted). Without
+    ``reveal`` (``grader check``) only which coefficient or part differs: never the missing or
+    extra factors, terms, or which symbols the model uses."""
     notes = []
     foreign = sorted(answer_symbols - ref_symbols)
     if foreign:
-        notes.append(f"it uses {', '.join(foreign)}, which do not appear in this loop")
+        notes.append(f"it uses {', '.join(foreign)}, which do not appear in this loop" if reveal
+                     else "it uses a symbol that does not appear in this loop")
     if form != "char_poly" and (has_s(answer.den) or has_s(answer.num)) is False:
         return notes + ["it does not depend on s"]
-    report = coefficient_report(char_poly_of(form, answer), char_poly_of(form, ref))
+    report = coefficient_report(char_poly_of(form, answer), char_poly_of(form, ref), reveal=reveal)
     if report:
         return notes + report
+    if not reveal:
+        return notes + ["the characteristic polynomial is right, but the gain (numerator) differs from the model's"]
     num, den = (answer.num * ref.den).cancel(ref.num * answer.den)
     how = _factor_text(num, den)
     return notes + ["the characteristic polynomial is right, but " + (f"the gain {how}" if how else "the numerator differs")]

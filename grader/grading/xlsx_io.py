@@ -10,6 +10,7 @@ optional data sheets ``calibration``, ``flow``, ``friction`` (headers ``name [un
 from __future__ import annotations
 
 import datetime as dt
+import xml.etree.ElementTree as ET
 import zipfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -22,7 +23,13 @@ from grader.errors import SubmissionError
 from grader.grading.items import ITEMS
 from grader.grading.limits import DEFAULT_LIMITS, Limits
 from grader.grading.results import Student
-from grader.grading.submissions import SAFE_ID, InlineData, InvalidAnswer, Submission, answer_notes
+from grader.grading.submissions import (
+    InlineData,
+    InvalidAnswer,
+    Submission,
+    answer_notes,
+    safe_id,
+)
 
 DATA_SHEETS = {"calibration": ("position [in]", "voltage [V]"), "flow": ("input [V]", "flow [in^3/s]"),
                "friction": ("speed [in/s]", "force [lbf]")}
@@ -165,7 +172,7 @@ def _data(wb: Any, name: str, limits: Limits) -> InlineData | None:
             vals = [_plain(_cell_value(c, "runs", limits), f"{name}: sheet 'runs' row {r}") for c in row[:5]]
             if vals and vals[0] is not None:
                 run = str(vals[0])
-                if run not in wb.sheetnames or not SAFE_ID.match(run):
+                if run not in wb.sheetnames or not safe_id(run):
                     raise SubmissionError(f"{name}: sheet 'runs' row {r}: no sheet named {run!r} with the run's data")
                 text = _csv(wb, run, name, limits)
                 if text is None:
@@ -185,18 +192,26 @@ def read_xlsx(path: Path, *, limits: Limits = DEFAULT_LIMITS) -> Submission:
     except Exception as exc:  # openpyxl raises many types on corrupt files
         raise SubmissionError(f"{path.name}: cannot open the workbook ({type(exc).__name__})") from None
     try:
-        missing = [s for s in ("info", "students", "answers") if s not in wb.sheetnames]
-        if missing:
-            raise SubmissionError(f"{path.name}: missing sheet(s) {', '.join(missing)} (use 'grader template' for the layout)")
-        info = _info(wb, path.name, limits)
-        sid = str(info.get("submission_id") or "").strip()
-        if not SAFE_ID.match(sid):
-            raise SubmissionError(f"{path.name}: sheet 'info': submission_id {sid[:64]!r} must be 1-64 letters, digits, _ . -")
-        answers = _answers(wb, limits)
-        if "poles" in wb.sheetnames and answers.get("closed_loop_poles") is None:
-            answers["closed_loop_poles"] = _poles(wb, limits)
-        return Submission(sid, path, _students(wb, path.name, limits), str(info.get("station") or "default")[:64],
-                          answers, _data(wb, path.name, limits), answer_notes(answers))
+        try:
+            missing = [s for s in ("info", "students", "answers") if s not in wb.sheetnames]
+            if missing:
+                raise SubmissionError(f"{path.name}: missing sheet(s) {', '.join(missing)} (use 'grader template' for the layout)")
+            info = _info(wb, path.name, limits)
+            sid = str(info.get("submission_id") or "").strip()
+            if not safe_id(sid):
+                raise SubmissionError(f"{path.name}: sheet 'info': submission_id {sid[:64]!r} must be 1-64 letters, digits, _ . - starting with a letter or digit")
+            answers = _answers(wb, limits)
+            if "poles" in wb.sheetnames and answers.get("closed_loop_poles") is None:
+                answers["closed_loop_poles"] = _poles(wb, limits)
+            return Submission(sid, path, _students(wb, path.name, limits), str(info.get("station") or "default")[:64],
+                              answers, _data(wb, path.name, limits), answer_notes(answers))
+        except SubmissionError as exc:
+            msg = str(exc)
+            raise SubmissionError(msg if msg.startswith(f"{path.name}:") else f"{path.name}: {msg}") from None
+        except (ET.ParseError, KeyError, ValueError, zipfile.BadZipFile, OSError, EOFError) as exc:
+            # read-only mode parses sheets lazily: malformed XML surfaces only while reading
+            raise SubmissionError(f"{path.name}: cannot read the workbook ({type(exc).__name__}); "
+                                  "save it again from Excel or use 'grader template'") from None
     finally:
         wb.close()
 
