@@ -8,7 +8,7 @@ its numeric answers by up to ±0.5 %, and picks its PD/PI gains from the round n
 choose (``--unique-designs``: every group its own gains, the rig simulator's worst case).
 The whole ``grader grade`` run is timed as a subprocess (imports, reading, keys, rig simulations,
 grading, outputs), against the fixtures' station dataset and its checked-in key
-(``submissions_fixtures/datasets``, ``submissions_fixtures/keys``); a second run checks that
+(``reference_solutions/datasets``, ``reference_solutions/keys``); a second run checks that
 the outputs are byte-identical.
 Target: < 20 s on 2 cores.
 """
@@ -59,8 +59,11 @@ def _designs(rng: random.Random, unique: bool) -> tuple[dict[str, Any], dict[str
 def make_submissions(folder: Path, n: int, *, seed: int = 7, unique_designs: bool = False) -> None:
     """Write ``n`` synthetic submissions into ``folder``."""
     rng = random.Random(seed)
+    expected = json.loads((FIXTURES.parent / "grading_expected.json").read_text())
     bases = []
     for p in sorted(FIXTURES.glob("*.json")):
+        if not expected.get(p.name, {}).get("valid", False):
+            continue  # only readable submissions: every synthetic one must be graded
         try:
             data = json.loads(p.read_text())
         except json.JSONDecodeError:
@@ -86,10 +89,8 @@ def _child_cpu() -> float:
 def run(folder: Path, out: Path, workers: int) -> tuple[float, float]:
     """(wall seconds, CPU seconds of the grader and its workers) of one ``grader grade`` run."""
     t0, c0 = time.perf_counter(), _child_cpu()
-    data = ROOT / "submissions_fixtures"
     proc = subprocess.run([sys.executable, "-m", "grader.cli", "grade", str(folder), "--out", str(out),
-                           "--workers", str(workers), "--no-progress", "--datasets", str(data / "datasets"),
-                           "--keys", str(data / "keys")],
+                           "--workers", str(workers), "--no-progress"],
                           capture_output=True, text=True, cwd=ROOT)
     elapsed, cpu = time.perf_counter() - t0, _child_cpu() - c0
     if proc.returncode not in (0, 1):
@@ -120,6 +121,9 @@ def main() -> None:
         print(f"graded {len(report['submissions'])} submissions ({graded} valid) with {args.workers} workers: "
               f"{t1:.1f} s wall, {cpu1:.1f} s CPU (second run {t2:.1f} s; load average {load:.1f}); "
               f"outputs byte-identical: {same_tree(out1, out2)}")
+        if graded != args.n:
+            first = next(s for s in report["submissions"] if not s["valid"])
+            raise SystemExit(f"{args.n - graded} synthetic submissions were invalid, e.g.: {first['error']}")
 
 
 if __name__ == "__main__":
