@@ -18,7 +18,7 @@ from grader.errors import GraderError
 #: Modules whose ``register(subparsers)`` adds verbs, in help order.
 _COMMAND_MODULES = (
     "grader.commands",
-    "grader.model.commands",
+    "grader.simulate_commands",
     "grader.grading.commands",
     "grader.gap.commands",
     "grader.assess.commands",
