@@ -18,9 +18,13 @@ The CLI prints that message and exits non-zero; no traceback reaches a user.
     ├── SimulationError    the rig simulator was given an unknown effect or an out-of-range value
     ├── AssessmentError    a survey or exam-score file is malformed
     └── DiagnosisError     the gap diagnosis cannot run on the given data
+
+:func:`validation_message` turns a pydantic ``ValidationError`` into such a one-line message.
 """
 
 from __future__ import annotations
+
+from pydantic import ValidationError
 
 
 class GraderError(Exception):
@@ -69,3 +73,12 @@ class AssessmentError(GraderError):
 
 class DiagnosisError(GraderError):
     """The gap diagnosis cannot run on the given data."""
+
+
+def validation_message(source: str, exc: ValidationError) -> str:
+    """One line for a pydantic ``ValidationError``: ``"<source>: field a.b: <first problem> (+N more)"``."""
+    errors = exc.errors()
+    err = errors[0]
+    loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
+    more = f" (+{len(errors) - 1} more)" if len(errors) > 1 else ""
+    return f"{source}: field {loc}: {err['msg'].removeprefix('Value error, ')}{more}"

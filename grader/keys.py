@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from grader import __version__
 from grader.datasets import Dataset, load
-from grader.errors import KeyFileError
+from grader.errors import KeyFileError, validation_message
 from grader.identify import Estimate, Identification, identify, predictions
 from grader.model.linear import closed_loop_poles
 from grader.model.params import RigParams
@@ -145,8 +145,7 @@ def read_key(path: str | Path) -> Key:
     try:
         return Key.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        raise KeyFileError(f"{path.name}: field {'.'.join(map(str, err['loc']))}: {err['msg']}") from None
+        raise KeyFileError(validation_message(path.name, exc)) from None
 
 
 def key_for_dataset(root: str | Path) -> Key:

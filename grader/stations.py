@@ -15,7 +15,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
 
 from grader.datasets.schema import Given
-from grader.errors import DatasetError, GraderError
+from grader.errors import DatasetError, GraderError, validation_message
 from grader.model.params import RigParams
 from grader.units import quantity_to_float
 
@@ -99,6 +99,5 @@ def load_station(name_or_path: str | Path) -> Station:
     except yaml.YAMLError as exc:
         raise DatasetError(f"{path.name}: not valid YAML ({str(exc).splitlines()[0]})") from None
     except ValidationError as exc:
-        err = exc.errors()[0]
-        raise DatasetError(f"{path.name}: field {'.'.join(map(str, err['loc']))}: {err['msg']}") from None
+        raise DatasetError(validation_message(path.name, exc)) from None
     return station

@@ -25,7 +25,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 from grader import __version__
 from grader.datasets import ControllerSpec, Manifest, RunSpec, write_dataset
 from grader.datasets.schema import RunKind
-from grader.errors import DatasetError, SimulationError
+from grader.errors import DatasetError, SimulationError, validation_message
 from grader.model.effects import EffectSet
 from grader.model.params import Controller, RigParams
 from grader.model.rig import simulate_rig, simulate_rig_batch
@@ -200,8 +200,7 @@ def read_truth(folder: str | Path) -> TruthFile:
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise DatasetError(f"{path.name}: not valid JSON ({exc})") from None
     except ValidationError as exc:
-        err = exc.errors()[0]
-        raise DatasetError(f"{path.name}: field {'.'.join(map(str, err['loc']))}: {err['msg']}") from None
+        raise DatasetError(validation_message(path.name, exc)) from None
     except SimulationError as exc:
         raise DatasetError(f"{path.name}: {exc}") from None
     return truth

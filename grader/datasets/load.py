@@ -14,7 +14,7 @@ from pydantic import ValidationError
 
 from grader.datasets.csvio import Table, read_table, write_table
 from grader.datasets.schema import CALIBRATION, FLOW_TEST, FRICTION, RUN, Manifest, RunSpec
-from grader.errors import DatasetError, GraderError
+from grader.errors import DatasetError, GraderError, validation_message
 from grader.model.params import Controller
 
 MANIFEST_NAMES = ("manifest.json", "manifest.yaml", "manifest.yml")
@@ -58,12 +58,6 @@ class Dataset:
         return tuple(r for r in self.runs if r.spec.kind == kind)
 
 
-def _pydantic_message(source: str, exc: ValidationError) -> str:
-    err = exc.errors()[0]
-    loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
-    more = f" (+{len(exc.errors()) - 1} more)" if len(exc.errors()) > 1 else ""
-    return f"{source}: field {loc}: {err['msg']}{more}"
-
 
 def read_manifest(root: Path) -> tuple[Manifest, Path]:
     """Find and validate the manifest in ``root``."""
@@ -87,7 +81,7 @@ def read_manifest(root: Path) -> tuple[Manifest, Path]:
     try:
         return Manifest.model_validate(raw), path
     except ValidationError as exc:
-        raise DatasetError(_pydantic_message(path.name, exc)) from None
+        raise DatasetError(validation_message(path.name, exc)) from None
     except GraderError as exc:
         raise DatasetError(f"{path.name}: {exc}") from None
 

@@ -16,7 +16,7 @@ from typing import Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from grader.errors import GraderError, RubricError
+from grader.errors import GraderError, RubricError, validation_message
 from grader.grading.ecf import RECOMPUTE
 from grader.grading.items import ITEMS
 from grader.grading.mistakes import CATALOG
@@ -212,8 +212,6 @@ def load_rubric(path: str | Path) -> Rubric:
     try:
         return Rubric.model_validate(raw)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        loc = "".join(f"{p}: " for p in [".".join(str(p) for p in err["loc"])] if p)
-        raise RubricError(f"{path.name}: {loc}{err['msg'].removeprefix('Value error, ')}") from None
+        raise RubricError(validation_message(path.name, exc)) from None
     except GraderError as exc:
         raise RubricError(f"{path.name}: {exc}") from None

@@ -20,7 +20,7 @@ from typing import Any
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from grader.errors import SubmissionError
+from grader.errors import SubmissionError, validation_message
 from grader.grading.items import ITEMS
 from grader.grading.limits import DEFAULT_LIMITS, Limits
 from grader.grading.results import Student
@@ -94,12 +94,6 @@ def fallback_id(path: Path) -> str:
     return stem
 
 
-def _pydantic_message(source: str, exc: ValidationError) -> str:
-    err = exc.errors()[0]
-    loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
-    more = f" (+{len(exc.errors()) - 1} more)" if len(exc.errors()) > 1 else ""
-    return f"{source}: field {loc}: {err['msg']}{more}"
-
 
 def _load_text(path: Path, limits: Limits) -> Any:
     size = path.stat().st_size
@@ -170,7 +164,7 @@ def from_mapping(path: Path, raw: Any) -> Submission:
     try:
         m = SubmissionModel.model_validate(raw)
     except ValidationError as exc:
-        raise SubmissionError(_pydantic_message(path.name, exc)) from None
+        raise SubmissionError(validation_message(path.name, exc)) from None
     students = tuple(Student(s.name, s.sis_user_id, s.login_id, s.section, s.id) for s in m.students)
     data = resolve_data_dir(path, m.data) if m.data else None
     return Submission(m.submission_id, path, students, m.station, dict(m.answers), data, answer_notes(m.answers))
