@@ -34,30 +34,6 @@ ureg.define("gpm = gallon / minute")
 Q_ = ureg.Quantity
 Quantity = pint.Quantity
 
-#: Internal coherent unit per kind (in, lbf, s, psi, mA, V).
-INTERNAL: Final[dict[str, str]] = {
-    "length": "in",
-    "area": "in**2",
-    "volume": "in**3",
-    "force": "lbf",
-    "mass": "lbf*s**2/in",
-    "time": "s",
-    "frequency": "rad/s",
-    "pressure": "psi",
-    "current": "mA",
-    "voltage": "V",
-    "flow": "in**3/s",
-    "velocity": "in/s",
-    "acceleration": "in/s**2",
-    "Kq": "in**3/s/mA",
-    "Kpot": "V/in",
-    "Kamp": "mA/V",
-    "B": "lbf*s/in",
-    "beta_over_Vt": "psi/in**3",
-    "Kce": "in**3/s/psi",
-    "dimensionless": "dimensionless",
-}
-
 _MAX_LEN: Final = 120
 _ALLOWED = re.compile(r"^[A-Za-z0-9_.+\-*/^()\s°µ%]*$")
 _BIG_NUMBER = re.compile(r"\d{40,}")

@@ -84,7 +84,7 @@ def critical_gain(p: RigParams) -> tuple[float, float]:
 
 def velocity_constant(p: RigParams, kp: float) -> float:
     """Kv = lim s·L(s) [1/s] for P control."""
-    a2, a1, _ = plant_coeffs(p)
+    a1 = plant_coeffs(p)[1]
     return kp * loop_gain_per_kp(p) / a1
 
 

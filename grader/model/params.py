@@ -64,11 +64,6 @@ class RigParams:
         """Gain from position error [in] to the controller's input: Kpot [V/in] or 1."""
         return self.Kpot if self.feedback == "volts" else 1.0
 
-    @property
-    def omega_h(self) -> float:
-        """Hydraulic natural frequency with B = 0 [rad/s]: sqrt(4 β/Vt A² / M)."""
-        return math.sqrt(4.0 * self.beta_over_Vt * self.A**2 / self.M)
-
     def with_(self, **changes: float | str) -> RigParams:
         """A copy with some fields changed."""
         return replace(self, **changes)

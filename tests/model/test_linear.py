@@ -109,3 +109,13 @@ def test_default_station_behaves_as_the_paper_describes(station) -> None:  # noq
     assert -pair46.real / abs(pair46) < 0.05  # lightly damped pair dominates at 46
     assert zloop.gain_for_overshoot(p, 0.25) < k_crit  # 25 % overshoot reachable
     assert 50 < k_crit < 65
+
+
+def test_root_locus_rows_are_the_closed_loop_poles_and_cross_at_the_critical_gain() -> None:
+    kc, w = linear.critical_gain(BASE)
+    gains = np.array([1.0, 10.0, kc, 2 * kc])
+    locus = linear.root_locus(BASE, gains)
+    assert locus.shape == (4, 3)
+    np.testing.assert_allclose(locus[1], linear.closed_loop_poles(BASE, Controller(10.0)))
+    assert np.max(locus[0].real) < 0 and np.max(locus[3].real) > 0
+    assert np.min(np.abs(locus[2].imag - w)) < 1e-6 * w
