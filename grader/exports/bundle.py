@@ -15,20 +15,6 @@ from grader.grading.results import SubmissionResult
 from grader.grading.rubric import Rubric
 
 
-def file_stems(results: Sequence[SubmissionResult]) -> list[str]:
-    """One file stem per result: its submission id, with ``~2``, ``~3`` ... added to ids that equal an
-    earlier one up to letter case (``Ab`` and ``ab`` would be one file on a case-insensitive disk)."""
-    seen: set[str] = set()
-    stems = []
-    for r in results:
-        stem, n = r.submission_id, 2
-        while stem.casefold() in seen:
-            stem, n = f"{r.submission_id}~{n}", n + 1
-        seen.add(stem.casefold())
-        stems.append(stem)
-    return stems
-
-
 def write_outputs(results: Sequence[SubmissionResult], out: Path, rubric: Rubric, *, assignment: str,
                   assignment_id: str) -> list[Path]:
     """grades.csv, results/<id>.json, feedback/<id>.md, report.json, gradebook.xlsx; stale per-submission
@@ -38,8 +24,8 @@ def write_outputs(results: Sequence[SubmissionResult], out: Path, rubric: Rubric
     for folder, suffix, render in (("results", ".json", results_json),
                                    ("feedback", ".md", lambda r: feedback_md(r, title=rubric.title))):
         keep = set()
-        for r, stem in zip(results, file_stems(results), strict=True):
-            path = write_text(out / folder / f"{stem}{suffix}", render(r))
+        for r in results:  # ids are unique even up to letter case (grading.pipeline.read_all)
+            path = write_text(out / folder / f"{r.submission_id}{suffix}", render(r))
             keep.add(path.name)
             written.append(path)
         for stale in (out / folder).glob(f"*{suffix}"):

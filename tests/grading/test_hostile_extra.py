@@ -205,12 +205,20 @@ def test_fallback_id_starts_with_a_letter_or_digit(name: str, expected: str) -> 
     assert fallback_id(Path(name)) == expected
 
 
-def test_outputs_of_ids_differing_only_in_case_do_not_overwrite(tmp_path: Path, rubric) -> None:
-    from grader.exports.bundle import write_outputs
-    from grader.grading.results import ItemResult, Student, SubmissionResult
+def test_ids_differing_only_in_case_get_distinct_outputs(tmp_path: Path, rubric) -> None:
+    """On a case-insensitive disk 'Ab' and 'ab' would be one file: the second becomes an invalid,
+    renamed result saying why, and nothing is overwritten or dropped."""
+    import json
 
-    items = (ItemResult("Kq", "correct", 6.0, 6.0, "ok"),)
-    rs = [SubmissionResult(sid, f"{sid}.json", (Student(sid),), items) for sid in ("Ab", "ab", "AB", "cd")]
-    write_outputs(rs, tmp_path, rubric, assignment="Lab", assignment_id="1")
-    names = sorted(p.name.casefold() for p in (tmp_path / "feedback").iterdir())
-    assert len(names) == len(set(names)) == 4
+    from grader.grading.grade import GradeOptions
+    from grader.grading.pipeline import read_all
+
+    base = json.loads((Path(__file__).resolve().parents[2] / "submissions_fixtures/grading/correct.json").read_text())
+    paths = []
+    for name, sid in (("one.json", "Ab"), ("two.json", "ab"), ("three.json", "cd")):
+        (tmp_path / name).write_text(json.dumps({**base, "submission_id": sid}))
+        paths.append(tmp_path / name)
+    subs = read_all(paths, GradeOptions(rubric=rubric, convention=rubric.feedback_convention, reveal=True))
+    ids = [s.submission_id for s in subs]
+    assert len({i.casefold() for i in ids}) == 3 and ids[0] == "Ab" and ids[1] == "ab~2"
+    assert "duplicate submission_id" in subs[1].error
