@@ -25,7 +25,7 @@ T_ = TypeVar("T_")
 #: DAC output limit of the data-acquisition board [V]; the ADC spans the same ±10 V.
 DAC_LIMIT = 10.0
 ADC_SPAN = 2 * DAC_LIMIT
-#: Largest RK4 step relative to the fastest time scale (|lambda|·h).
+#: Largest substep relative to the fastest time scale (|lambda|·h).
 STEP_FACTOR = 0.5
 
 
@@ -66,12 +66,12 @@ class RigArrays:
     def n(self) -> int:
         return self.A.size
 
-    def substeps(self) -> int:
-        """RK4 substeps per sample period so that |lambda|·h <= STEP_FACTOR for the fastest mode."""
+    def substeps(self) -> NDArray[np.int64]:
+        """Substeps per sample period of each run, so that |lambda|·h <= STEP_FACTOR for its fastest mode."""
         a2 = self.B * self.inv_M + self.g * self.Kce
         a1 = self.g * self.A**2 * self.inv_M
         fastest = np.maximum.reduce([np.sqrt(a1), a2, self.c0, np.sqrt(self.w2) + self.z2])
-        return max(2, math.ceil(self.T * float(fastest.max()) / STEP_FACTOR))
+        return np.maximum(2, np.ceil(self.T * fastest / STEP_FACTOR)).astype(np.int64)
 
 
 def _as_list(value: T_ | Sequence[T_], kind: type) -> list[T_]:
