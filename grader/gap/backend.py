@@ -3,9 +3,9 @@
 A :class:`Point` is one model (linear parameters plus an :class:`EffectSet`). A request
 ``(point, run index)`` asks for that model's position x_k [in] on that run, with the
 model's controller reading x_k plus the run's estimated reading noise. All requests go
-through one call of the exact-ZOH rig model (:mod:`grader.gap.fastsim`), whatever their
-number: its Python loop runs over time only (two loops, one of them in a forked worker
-process when :func:`worker` provides one: the diagnosis uses two cores). Known hardware limits (DAC ±10 V,
+through the compiled rig engine (:func:`grader.model.rig.simulate_positions`), whatever their
+number (half of them in a forked worker process when :func:`worker` provides one: the
+diagnosis uses two cores). Known hardware limits (DAC ±10 V,
 amplifier ±i_max) are part of every model, as they are of the rig.
 """
 
@@ -21,10 +21,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from grader.gap import fastsim
 from grader.gap.runs import GapRun
 from grader.model.effects import EffectSet
 from grader.model.params import RigParams
+from grader.model.rig import simulate_positions
 
 Array = NDArray[np.float64]
 
@@ -47,6 +47,10 @@ def worker(enabled: bool = True) -> Iterator[Executor | None]:
         yield ex
 
 
+def _simulate(inputs: tuple[list, list, list, list[Array], list[Array]]) -> list[Array]:
+    return simulate_positions(*inputs)
+
+
 class Backend:
     """Simulates requests (see module docstring)."""
 
@@ -56,10 +60,18 @@ class Backend:
 
     def __call__(self, requests: Sequence[tuple[Point, int]]) -> list[Array]:
         """x_k [in] for each request, in order."""
+        if self.executor is None or len(requests) < 2:
+            return _simulate(self._inputs(requests))
+        pending = self.executor.submit(_simulate, self._inputs(requests[1::2]))  # every other request there
+        here = _simulate(self._inputs(requests[::2]))
+        out: list[Array] = [np.empty(0)] * len(requests)
+        out[::2], out[1::2] = here, pending.result()
+        return out
+
+    def _inputs(self, requests: Sequence[tuple[Point, int]]) -> tuple[list, list, list, list[Array], list[Array]]:
         runs = [self.runs[i] for _, i in requests]
-        return fastsim.simulate([pt.params for pt, _ in requests], [r.controller for r in runs],
-                                [pt.effects for pt, _ in requests], [r.r for r in runs], [r.noise for r in runs],
-                                executor=self.executor)
+        return ([pt.params for pt, _ in requests], [r.controller for r in runs], [pt.effects for pt, _ in requests],
+                [r.r for r in runs], [r.noise for r in runs])
 
     def all_runs(self, points: Sequence[Point]) -> list[list[Array]]:
         """x for every point on every run: ``result[p][i]``."""

@@ -19,13 +19,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from grader.gap import fastsim
 from grader.gap.backend import Backend
 from grader.gap.candidates import Candidate, combine
 from grader.gap.crossval import CrossValidation, cross_validate
 from grader.gap.fit import BatchFitter, FitState, grid_starts
 from grader.gap.runs import GapRun, truncated
-from grader.model.effects import EffectSet
 from grader.model.params import RigParams
 
 Array = NDArray[np.float64]
@@ -66,11 +64,7 @@ def second_effect(runs: Sequence[GapRun], base: RigParams, first: FitState, othe
                   executor: Executor | None = None) -> SearchResult:
     """Each of ``others`` added on top of the fitted ``first`` (greedy), searched from first's optimum;
     the first alone comes back as the last entry, the reference the additions must beat."""
-    combos = [combine(first.candidate, o) for o in others if fastsim.supports(_effects(first.candidate, o))]
+    combos = [combine(first.candidate, o) for o in others]
     starts = [np.concatenate([first.theta, np.zeros(c.n_theta - first.theta.size)]) for c in combos]
     return search(runs, base, [*combos, first.candidate], executor=executor, theta0=[*starts, first.theta])
 
-
-def _effects(a: Candidate, b: Candidate) -> EffectSet:
-    """The effect set of ``a`` and ``b`` together, at their default values."""
-    return EffectSet({n: {} for n in (*a.names, *b.names)})

@@ -152,9 +152,13 @@ def _taylor_flow(z, tau, Ac, Bc, norm, w, out, wk):  # noqa: ANN001, ANN201, N80
             out[r] += term[r]
         for k in range(2, TAYLOR_TERMS + 1):
             _mv(Ac, term, nxt)
+            small = True
             for r in range(NS):
                 term[r] = nxt[r] * (h / k)
                 out[r] += term[r]
+                small = small and abs(term[r]) <= 1e-17 * abs(out[r])
+            if small:
+                break
 
 
 @njit(cache=True)

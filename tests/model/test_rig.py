@@ -63,13 +63,6 @@ def test_effects_off_with_a_fine_sample_time_approaches_the_continuous_linear_mo
     assert np.abs(y - y_cont).max() < 0.2 * np.abs(y_coarse - y_cont[::10]).max()
 
 
-def test_error_shrinks_at_fourth_order_with_substeps(p: RigParams) -> None:
-    t, r = _step()
-    lin = simulate(p, Controller(46), t, r).y
-    errs = [np.abs(simulate_rig(p, Controller(46), t, r, substeps=n)[0] - lin).max() for n in (2, 4)]
-    assert 10 < errs[0] / errs[1] < 22  # 2^4 = 16
-
-
 def test_off_grid_time_base_is_handled_like_the_linear_model(p: RigParams) -> None:
     t, r = _step(dt=0.00037)
     lin = simulate(p, Controller(25), t, r)

@@ -62,3 +62,4 @@ def test_ramp_error_of_p_control_is_rate_over_kv(p: RigParams) -> None:
     assert zloop.ramp_error(p, Gains(10), 1.0, 3.0) == pytest.approx(ramp_error(p, 10, 1.0), rel=1e-3)
     assert abs(zloop.ramp_error(p, Gains(10, 20), 1.0, 4.0)) < 1e-4
     assert zloop.ramp_error(p, Gains(10, 5000), 1.0, 4.0) == float("inf")
+
