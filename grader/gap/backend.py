@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from grader.gap.runs import GapRun
 from grader.model.effects import EffectSet
 from grader.model.params import RigParams
-from grader.model.rig import simulate_positions
+from grader.model.rig import PositionBatch, position_batch
 
 Array = NDArray[np.float64]
 
@@ -39,16 +39,12 @@ class Point:
 
 @contextmanager
 def worker(enabled: bool = True) -> Iterator[Executor | None]:
-    """One forked worker process for the simulator's second loop, where fork and a second core exist."""
+    """One forked worker process for half of each batch, where fork and a second core exist."""
     if not enabled or "fork" not in mp.get_all_start_methods() or (os.cpu_count() or 1) < 2:
         yield None
         return
     with ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("fork")) as ex:
         yield ex
-
-
-def _simulate(inputs: tuple[list, list, list, list[Array], list[Array]]) -> list[Array]:
-    return simulate_positions(*inputs)
 
 
 class Backend:
@@ -61,17 +57,17 @@ class Backend:
     def __call__(self, requests: Sequence[tuple[Point, int]]) -> list[Array]:
         """x_k [in] for each request, in order."""
         if self.executor is None or len(requests) < 2:
-            return _simulate(self._inputs(requests))
-        pending = self.executor.submit(_simulate, self._inputs(requests[1::2]))  # every other request there
-        here = _simulate(self._inputs(requests[::2]))
+            return self._batch(requests).run()
+        pending = self.executor.submit(self._batch(requests[1::2]).run)  # every other request there
+        here = self._batch(requests[::2]).run()
         out: list[Array] = [np.empty(0)] * len(requests)
         out[::2], out[1::2] = here, pending.result()
         return out
 
-    def _inputs(self, requests: Sequence[tuple[Point, int]]) -> tuple[list, list, list, list[Array], list[Array]]:
+    def _batch(self, requests: Sequence[tuple[Point, int]]) -> PositionBatch:
         runs = [self.runs[i] for _, i in requests]
-        return ([pt.params for pt, _ in requests], [r.controller for r in runs], [pt.effects for pt, _ in requests],
-                [r.r for r in runs], [r.noise for r in runs])
+        return position_batch([pt.params for pt, _ in requests], [r.controller for r in runs],
+                              [pt.effects for pt, _ in requests], [r.r for r in runs], [r.noise for r in runs])
 
     def all_runs(self, points: Sequence[Point]) -> list[list[Array]]:
         """x for every point on every run: ``result[p][i]``."""

@@ -20,12 +20,13 @@ API::
 
     y, u = simulate_rig(params, controller, t, r, effects, rng=rng)          # one run: y [in], u [V]
     Y, U = simulate_rig_batch(params_list, controller, t, r, effects_list)   # shape (n, len(t))
-    xs = simulate_positions(params_list, controllers, effects_list, commands, noise)  # sampled runs
+    xs = simulate_positions(params_list, controllers, effects_list, commands, noise)  # x_k of sampled runs
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -121,10 +122,25 @@ def simulate_rig(
     return y[0], u[0]
 
 
-def simulate_positions(params: Sequence[RigParams], controllers: Sequence[Controller], effects: Sequence[EffectSet],
-                       commands: Sequence[Array], noise: Sequence[Array] | None = None) -> list[Array]:
-    """Position x_k [in] of each run (params[j], controllers[j], effects[j]) for its sampled command
-    ``commands[j]`` [in] (runs may differ in length); the controller reads x_k + ``noise[j][k]`` [in]."""
+@dataclass(frozen=True)
+class PositionBatch:
+    """Resolved runs of different lengths (picklable: a worker process can run it)."""
+
+    a: RigArrays
+    r: Array  # (n, Kmax) commands [in], padded with their last value
+    noise: Array  # (n, Kmax) reading noise [in]
+    K: NDArray[np.int64]  # samples of each run
+
+    def run(self) -> list[Array]:
+        """Position x_k [in] of each run, on its own samples."""
+        _, _, X = _engine_run(self.a, self.r, self.noise, self.K, None)
+        return [X[j, :k].copy() for j, k in enumerate(self.K)]
+
+
+def position_batch(params: Sequence[RigParams], controllers: Sequence[Controller], effects: Sequence[EffectSet],
+                   commands: Sequence[Array], noise: Sequence[Array] | None = None) -> PositionBatch:
+    """Runs (params[j], controllers[j], effects[j]) for sampled commands ``commands[j]`` [in] (lengths
+    may differ) whose controller reads x_k + ``noise[j][k]`` [in] (default 0)."""
     a = resolve(params, controllers, effects, n=len(commands))
     K = np.array([c.size for c in commands], dtype=np.int64)
     r, nz = np.zeros((a.n, int(K.max()))), np.zeros((a.n, int(K.max())))
@@ -132,5 +148,10 @@ def simulate_positions(params: Sequence[RigParams], controllers: Sequence[Contro
         r[j, :c.size], r[j, c.size:] = c, c[-1]
         if noise is not None:
             nz[j, :c.size] = noise[j]
-    _, _, X = _engine_run(a, r, nz, K, None)
-    return [X[j, :k].copy() for j, k in enumerate(K)]
+    return PositionBatch(a, r, nz, K)
+
+
+def simulate_positions(params: Sequence[RigParams], controllers: Sequence[Controller], effects: Sequence[EffectSet],
+                       commands: Sequence[Array], noise: Sequence[Array] | None = None) -> list[Array]:
+    """Position x_k [in] of each run of :func:`position_batch`, on its own samples."""
+    return position_batch(params, controllers, effects, commands, noise).run()
