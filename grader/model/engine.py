@@ -10,12 +10,13 @@ diagnosis fitter. Per run and per sample instant t_k = k·T::
     amplifier: i = clip(Kamp·u, ±i_lim) -> backlash (valve_hysteresis) -> plant
 
 The plant (:mod:`grader.model.hydraulic`) is advanced over each piece of the hold interval
-in ``m`` substeps. Where it is linear between events, each substep is the exact
-zero-order-hold map z ← Φ·z + Γ·w (Φ, Γ from the matrix exponential, computed once per
-run); otherwise it is a classical RK4 step. An event (a slipping mass stopping, a stuck
-one breaking away) is located inside the substep by Illinois regula falsi on the exact
-flow (a Taylor series of the linear flow, or RK4 over the partial step), the mode switched
-there, and the rest of the substep integrated in the new mode.
+(two pieces where a fractional delay switches the held output). Where it is linear between
+events, a piece is one exact zero-order-hold step z ← Φ·z + Γ·w (Φ, Γ from the matrix
+exponential, computed once per run); otherwise it is ``m`` classical RK4 substeps. An event
+(a slipping mass stopping, a stuck one breaking away) found at the end of a step is located
+inside it by Illinois regula falsi on the exact flow (a Taylor series of the linear flow, or
+RK4 over the partial step), the mode switched there, and the rest of the step integrated in
+the new mode.
 """
 
 from __future__ import annotations
@@ -347,7 +348,7 @@ def _loop(par, ctl, r, noise, K, lin, ev, n_a, n_b, hs, mats, phis, gams, Y, U, 
 def _run(par, ctl, r, noise, K: int, m: int, Y, U, X):  # noqa: ANN001, ANN201, N803
     """One run over K samples into the rows Y (y [in]), U (u [V]), X (x [in])."""
     lin, ev = plant.is_linear(par), plant.has_events(par)
-    n_a, n_b, hs = _pieces(ctl, m, lin and not ev)
+    n_a, n_b, hs = _pieces(ctl, m, lin)
     mats, phis, gams = _matrices(par, ev, hs) if lin else _matrices(par, False, np.zeros(2))
     z, z1, w, wk = np.zeros(NS), np.zeros(NS), np.zeros(NI), np.zeros((N_WORK, NS))
     if lin and not ev:
@@ -367,7 +368,7 @@ def _run_batch(par, ctl, r, noise, K, m, Y, U, X):  # noqa: ANN001, ANN201, N803
 def run(a: RigArrays, r: Array, noise: Array, K: NDArray[np.int64], m: NDArray[np.int64]) -> tuple[Array, Array, Array]:
     """(Y, U, X), each (n, Kmax): measured y [in], u [V] and true x [in] of each run for commands
     ``r`` (n, Kmax) [in] and reading noise (n, Kmax) [in]; run j uses its first K[j] samples and
-    m[j] substeps per sample (where not exact over whole hold intervals)."""
+    m[j] RK4 substeps per sample where the plant is not linear between events."""
     n, k_max = r.shape
     Y, U, X = np.zeros((n, k_max)), np.zeros((n, k_max)), np.zeros((n, k_max))
     _run_batch(plant.pack(a), pack_controls(a), np.array(r, dtype=np.float64, order="C"),

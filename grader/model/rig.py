@@ -85,9 +85,9 @@ def simulate_rig_batch(
 
     ``r`` [in] is one command for all runs (shape (len(t),)) or one per run (n, len(t)).
     Each of ``params``, ``controller``, ``effects`` is one object shared by the batch or a
-    sequence of n. Sensor noise is drawn from ``rng`` (default: seed 0). ``substeps`` per
-    sample (where the plant is not stepped exactly over whole hold intervals) defaults to
-    :meth:`RigArrays.substeps` of each run. All runs must share ``sample_time``.
+    sequence of n. Sensor noise is drawn from ``rng`` (default: seed 0). ``substeps``: RK4
+    steps per sample where the plant is not linear between events (elsewhere each hold interval
+    is one exact step); default :meth:`RigArrays.substeps` of each run. All runs must share ``sample_time``.
     """
     t, r = np.asarray(t, dtype=float), np.asarray(r, dtype=float)
     _check_inputs(t, r)
