@@ -3,7 +3,8 @@
 A ```console block holds ``$ grader ...`` lines, each followed by the output the text states
 (none, or some lines). A command passes when it exits with 0 (or with N when the line ends in
 ``# exit N``) and every stated output line appears in its output, in order, whitespace
-collapsed, ``…`` standing for any text. The commands of one page run in order in one working
+collapsed and table borders ignored (a wrapped table cell reads as one line), ``…``
+standing for any text. The commands of one page run in order in one working
 folder holding copies of ``reference_solutions/``, ``rubrics/`` and ``submissions_fixtures/``,
 in this process through :func:`grader.cli.main` (one import of the package for all of them).
 Plain ``` blocks are synopses and are not run.
@@ -106,8 +107,12 @@ def run(command: Command, folder: Path) -> tuple[int, str]:
     return code, buffer.getvalue()
 
 
+BOX = re.compile("[\u2500-\u257f]")
+
+
 def _squash(text: str) -> str:
-    return " ".join(text.split())
+    """Whitespace collapsed and table borders dropped, so wrapped table cells read as one line."""
+    return " ".join(BOX.sub(" ", text).split())
 
 
 def problems(command: Command, code: int, output: str) -> list[str]:

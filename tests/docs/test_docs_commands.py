@@ -53,3 +53,10 @@ def test_output_check_can_fail() -> None:
     assert len(runnable.problems(cmd, 0, "grader 0.1.0\n")) == 1
     assert len(runnable.problems(cmd, 2, "grader 0.1.0\n no such  line")) == 1
     assert runnable.problems(cmd, 0, "grader 0.1.0\nno such\nline") == []
+
+
+def test_output_check_reads_wrapped_table_cells() -> None:
+    cmd = runnable.Command("x.md", 1, "grader check f.json", 0, ["the loop's is of degree 3."])
+    wrapped = "│ closed_loop_tf │ incorrect │ the loop's is of │\n│                │           │ degree 3.        │\n"
+    assert runnable.problems(cmd, 0, wrapped) == []
+    assert len(runnable.problems(cmd, 0, wrapped.replace("degree", "order"))) == 1
