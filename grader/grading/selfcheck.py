@@ -13,7 +13,7 @@ from dataclasses import replace
 
 from grader.errors import GraderError
 from grader.grading.context import KeyContext
-from grader.grading.grade import GradeOptions, grade_submission
+from grader.grading.grade import GradeOptions, RigLookup, grade_submission
 from grader.grading.results import SubmissionResult
 from grader.grading.submissions import Submission
 
@@ -25,8 +25,12 @@ def no_key_note(exc: GraderError) -> str:
     return f"no lab data to check against ({exc}); checking the prelab items only"
 
 
-def self_check(sub: Submission, resolve: KeyResolver, opts: GradeOptions) -> SubmissionResult:
-    """Grade ``sub`` for its students: statuses and key-safe feedback (``opts.reveal`` must be False)."""
+def self_check(sub: Submission, resolve: KeyResolver, opts: GradeOptions, *,
+               rig: RigLookup | None = None) -> SubmissionResult:
+    """Grade ``sub`` for its students: statuses and key-safe feedback (``opts.reveal`` must be False).
+
+    ``rig`` holds known rig verdicts of designs; a dict is also filled with the ones computed here.
+    """
     if opts.reveal:
         raise ValueError("a self-check never reveals the key (reveal=False)")
     try:
@@ -34,4 +38,4 @@ def self_check(sub: Submission, resolve: KeyResolver, opts: GradeOptions) -> Sub
     except GraderError as exc:
         result = grade_submission(sub, None, opts)
         return replace(result, notes=(no_key_note(exc), *result.notes))
-    return grade_submission(sub, kc, opts)
+    return grade_submission(sub, kc, opts, rig=rig)
