@@ -26,7 +26,7 @@ GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
 )
 _HINTS = {
     "expression": "symbols " + ", ".join(n for n in COURSE_SYMBOLS) + "; products with * or a space",
-    "poles": "one gain a line, e.g. Kp=10: -26.5+153.6j, -26.5-153.6j, -11.4 (add Ki=… or Kd=… if used)",
+    "poles": "one gain a line, e.g. Kp=10: -20+150j, -20-150j, -12 (add Ki=… or Kd=… if used)",
     "pd_design": "Kp = …, Kd = … s, overshoot = … %",
     "pi_design": "Kp = …, Ki = … 1/s, ramp_error = … in",
 }
