@@ -17,7 +17,7 @@
     if (data.error) { el.textContent = data.error; return; }
     if (!data.latex) return;
     const math = document.createElement("span");
-    try { window.katex.render(data.latex, math, {throwOnError: false, displayMode: false}); }
+    try { window.katex.render("\\displaystyle " + data.latex, math, {throwOnError: false}); }
     catch (e) { math.textContent = data.read_as; }
     const read = document.createElement("div");
     read.className = "read";
@@ -86,7 +86,7 @@
       const word = document.createElement("span");
       word.className = "status";
       word.textContent = it.status;
-      el.append(word, document.createTextNode(it.feedback));
+      el.append(word, document.createTextNode(" " + it.feedback));
       el.classList.add(it.status);
     }
     const notes = document.getElementById("notes");
