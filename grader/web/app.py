@@ -16,11 +16,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import anyio
 from fastapi import FastAPI, Request, UploadFile
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
-from starlette.concurrency import run_in_threadpool
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from grader.errors import GraderError
@@ -37,10 +37,12 @@ MULTIPART_OVERHEAD = 64_000  # bytes allowed on top of an XLSX upload's own limi
 
 @dataclass(frozen=True)
 class WebOptions:
-    """Rate limits: checks per minute per client (0: none) and the burst allowed; previews get 10x."""
+    """Rate limits: checks per minute per client (0: none) and the burst allowed (previews get 10x);
+    ``threads``: checks run at once per worker (CPU-bound: more only add contention)."""
 
     checks_per_minute: float = 60.0
     burst: float = 30.0
+    threads: int = 4
 
 
 class BodyTooLarge(Exception):
@@ -99,6 +101,7 @@ def create_app(service: CheckService, options: WebOptions = WebOptions()) -> Fas
     app = FastAPI(title="grader self-check", docs_url=None, redoc_url=None, openapi_url=None)
     checks = RateLimiter(options.checks_per_minute, options.burst)
     previews = RateLimiter(options.checks_per_minute * 10, options.burst * 10)
+    lanes = anyio.CapacityLimiter(options.threads)
     xlsx_cap = service.opts.limits.max_xlsx_bytes + MULTIPART_OVERHEAD
     app.add_middleware(BodyLimit, limit=lambda path: xlsx_cap if path == "/api/check-file" else MAX_BODY)
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
@@ -131,7 +134,7 @@ def create_app(service: CheckService, options: WebOptions = WebOptions()) -> Fas
 
     async def run_check(fn: Any, *args: Any) -> JSONResponse:
         start = time.perf_counter()
-        doc = result_document(await run_in_threadpool(fn, *args))
+        doc = result_document(await anyio.to_thread.run_sync(fn, *args, limiter=lanes))
         _count_log(doc["items"], time.perf_counter() - start)
         return JSONResponse(doc)
 
@@ -183,6 +186,6 @@ def create_app(service: CheckService, options: WebOptions = WebOptions()) -> Fas
             return _error(400, "body is not valid JSON")
         if not isinstance(body, dict) or not isinstance(body.get("item"), str) or not isinstance(body.get("text"), str):
             return _error(422, 'expected {"item": "<item>", "text": "<what was typed>"}')
-        return JSONResponse(await run_in_threadpool(preview, body["item"], body["text"]))
+        return JSONResponse(await anyio.to_thread.run_sync(preview, body["item"], body["text"], limiter=lanes))
 
     return app

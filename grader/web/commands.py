@@ -24,6 +24,7 @@ def app_from_env() -> Any:
     from grader.web.service import build_service
 
     cfg = json.loads(os.environ.get(ENV, "{}"))
+    _log_setup()
     service = build_service(Path(cfg.get("rubric") or repo_root() / DEFAULT_RUBRIC),
                             Path(cfg["stations"]) if cfg.get("stations") else None,
                             Path(cfg["keys"]) if cfg.get("keys") else None)
@@ -31,18 +32,24 @@ def app_from_env() -> Any:
     return create_app(service, WebOptions(checks_per_minute=cfg.get("rate_limit", 60.0), burst=cfg.get("burst", 30.0)))
 
 
-def _serve(args: argparse.Namespace) -> int:
+def _log_setup() -> None:
+    """grader.web's count lines at INFO on stderr, in every worker process (never an answer)."""
     import logging
 
+    logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    logging.getLogger("grader.web").setLevel(logging.INFO)
+
+
+def _serve(args: argparse.Namespace) -> int:
     import uvicorn
 
     os.environ[ENV] = json.dumps({"rubric": args.rubric, "stations": args.stations, "keys": args.keys,
                                   "rate_limit": args.rate_limit, "burst": args.burst})
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
     print(f"grader serve: http://{args.host}:{args.port}/  (Ctrl-C to stop)")
     uvicorn.run("grader.web.commands:app_from_env", factory=True, host=args.host, port=args.port,
                 workers=args.workers, proxy_headers=True, forwarded_allow_ips=args.forwarded_allow_ips,
-                access_log=not args.no_access_log, log_level="info")
+                access_log=not args.no_access_log, log_level="info",
+                timeout_worker_healthcheck=60)  # a worker busy with rig simulations is not hung
     return 0
 
 

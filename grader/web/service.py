@@ -25,6 +25,45 @@ from grader.grading.submissions import Submission, from_mapping, read_submission
 #: Filled in when a JSON document leaves them out (the API makes them optional).
 DOC_DEFAULTS: dict[str, Any] = {"submission_id": "self-check", "students": [{"name": "student"}]}
 RIG_MEMO_SIZE = 4096  # rig verdicts kept (one per distinct station, design item and gains)
+RIG_WAIT_S = 60.0  # longest wait for another thread's rig simulation of the same design
+
+
+class RigMemo(dict[RigCase, "RigVerdict | None"]):
+    """Rig verdicts shared by the request threads, each design simulated once (single flight).
+
+    The grader asks ``case in memo`` before simulating and stores the verdict after; the first
+    thread to ask about a missing case simulates it, later ones wait for its verdict instead of
+    simulating the same design again.
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._lock = threading.Lock()
+        self._running: dict[RigCase, threading.Event] = {}
+
+    def __contains__(self, case: object) -> bool:
+        with self._lock:
+            if dict.__contains__(self, case):
+                return True
+            running = self._running.get(case)  # type: ignore[call-overload]
+            if running is None:
+                self._running[case] = threading.Event()  # type: ignore[index]
+                return False  # the caller simulates it and stores the verdict
+        if not running.wait(RIG_WAIT_S):  # the simulating thread failed: let the next one try
+            with self._lock:
+                if self._running.get(case) is running:  # type: ignore[call-overload]
+                    del self._running[case]  # type: ignore[arg-type]
+            running.set()
+        return dict.__contains__(self, case)
+
+    def __setitem__(self, case: RigCase, verdict: RigVerdict | None) -> None:
+        with self._lock:
+            if len(self) >= RIG_MEMO_SIZE:
+                self.clear()
+            dict.__setitem__(self, case, verdict)
+            done = self._running.pop(case, None)
+        if done is not None:
+            done.set()
 
 
 @dataclass
@@ -34,7 +73,7 @@ class CheckService:
     opts: GradeOptions
     store: KeyStore
     _keys: dict[str, KeyContext] = field(default_factory=dict, repr=False)
-    _rig: dict[RigCase, RigVerdict | None] = field(default_factory=dict, repr=False)
+    _rig: RigMemo = field(default_factory=RigMemo, repr=False)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def stations(self) -> list[str]:
@@ -65,8 +104,6 @@ class CheckService:
 
     def check(self, sub: Submission) -> SubmissionResult:
         """Statuses and key-safe feedback for ``sub``."""
-        if len(self._rig) > RIG_MEMO_SIZE:
-            self._rig.clear()
         return self_check(sub, self._resolve, self.opts, rig=self._rig)
 
     def check_document(self, doc: Any) -> SubmissionResult:

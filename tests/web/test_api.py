@@ -194,3 +194,27 @@ def test_page_has_every_hook_and_no_key(client: TestClient, service: CheckServic
     for asset in ("/static/katex/katex.min.js", "/static/katex/katex.min.css", "/static/katex/fonts/KaTeX_Main-Regular.woff2"):
         assert client.get(asset).status_code == 200  # bundled: the page needs no internet
     assert json.loads(client.get("/api/stations").text) == {"stations": ["default"]}
+
+
+def test_rig_memo_simulates_each_design_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Threads asking for the same missing design: one simulates, the others wait for its verdict."""
+    import threading
+
+    from grader.web import service as svc
+
+    memo, case, answers = svc.RigMemo(), object(), []
+    assert (case in memo) is False  # this thread now simulates it
+
+    def ask() -> None:
+        answers.append(case in memo)
+    waiters = [threading.Thread(target=ask) for _ in range(3)]
+    for t in waiters:
+        t.start()
+    memo[case] = "verdict"  # type: ignore[index]
+    for t in waiters:
+        t.join(5)
+    assert answers == [True, True, True] and memo[case] == "verdict"  # type: ignore[index]
+    monkeypatch.setattr(svc, "RIG_WAIT_S", 0.01)
+    other = object()
+    assert (other in memo) is False and (other in memo) is False  # a failed simulation does not block for ever
+    assert (other in memo) is False
