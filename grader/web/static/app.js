@@ -32,7 +32,7 @@
     timers[item] = setTimeout(async () => {
       const text = input.value;
       if (!text.trim()) { showPreview(el, {}); return; }
-      const [r, data] = await postJSON("/api/preview", {item: item, text: text});
+      const [r, data] = await postJSON("api/preview", {item: item, text: text});
       if (input.value === text) showPreview(el, r.ok ? data : {});
     }, 250);
   }
@@ -106,10 +106,10 @@
       if (file) {
         const body = new FormData();
         body.append("file", file);
-        r = await fetch("/api/check-file", {method: "POST", body: body});
+        r = await fetch("api/check-file", {method: "POST", body: body});
         data = await r.json().catch(() => ({error: "the server sent an unreadable reply"}));
       } else {
-        [r, data] = await postJSON("/api/check", {station: document.getElementById("station").value, answers: answers()});
+        [r, data] = await postJSON("api/check", {station: document.getElementById("station").value, answers: answers()});
       }
       if (!r.ok) { status.className = "error"; status.textContent = data.error || ("error " + r.status); return; }
       showResults(data);
