@@ -73,7 +73,7 @@ async def _load(url: str, bodies: list[bytes], clients: int, max_seconds: float)
         queue.put_nowait(b)
     out: list[tuple[float, int]] = []
     limits = httpx.Limits(max_connections=clients, max_keepalive_connections=clients)
-    async with httpx.AsyncClient(limits=limits, timeout=60) as client:
+    async with httpx.AsyncClient(limits=limits, timeout=300) as client:
         async def worker() -> None:
             while not queue.empty():
                 body = queue.get_nowait()

@@ -49,6 +49,19 @@ class BodyTooLarge(Exception):
     """A request body over its limit."""
 
 
+class BadJSON(Exception):
+    """A request body that is not valid JSON (a 400)."""
+
+
+async def _json_body(request: Request) -> Any:
+    try:
+        return json.loads(await request.body())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise BadJSON(f"body is not valid JSON: {getattr(exc, 'msg', exc)}") from None
+    except (RecursionError, ValueError):
+        raise BadJSON("body is not valid JSON (nested too deeply or a number too long)") from None
+
+
 class BodyLimit:
     """ASGI middleware: refuse a body over ``limit(path)`` bytes, by Content-Length or while it streams."""
 
@@ -96,20 +109,16 @@ def _count_log(result_items: list[dict[str, Any]], elapsed: float) -> None:
              " ".join(f"{k}={v}" for k, v in sorted(counts.items())), elapsed * 1e3)
 
 
-def create_app(service: CheckService, options: WebOptions = WebOptions()) -> FastAPI:
-    """The app for one worker process."""
-    app = FastAPI(title="grader self-check", docs_url=None, redoc_url=None, openapi_url=None)
-    checks = RateLimiter(options.checks_per_minute, options.burst)
-    previews = RateLimiter(options.checks_per_minute * 10, options.burst * 10)
-    lanes = anyio.CapacityLimiter(options.threads)
-    xlsx_cap = service.opts.limits.max_xlsx_bytes + MULTIPART_OVERHEAD
-    app.add_middleware(BodyLimit, limit=lambda path: xlsx_cap if path == "/api/check-file" else MAX_BODY)
-    app.mount("/static", StaticFiles(directory=STATIC), name="static")
-    page = render_page(service.opts.rubric, service.stations())
+def _error_handlers(app: FastAPI, xlsx_cap: int) -> None:
+    """One-line JSON errors: 400 bad JSON, 413 too large, 422 unreadable submission, generic 500."""
 
     @app.exception_handler(BodyTooLarge)
     async def _large(request: Request, exc: BodyTooLarge) -> JSONResponse:
         return _too_large(xlsx_cap if request.url.path == "/api/check-file" else MAX_BODY)
+
+    @app.exception_handler(BadJSON)
+    async def _bad_json(request: Request, exc: BadJSON) -> JSONResponse:
+        return _error(400, str(exc))
 
     @app.exception_handler(GraderError)
     async def _bad(request: Request, exc: GraderError) -> JSONResponse:
@@ -125,6 +134,20 @@ def create_app(service: CheckService, options: WebOptions = WebOptions()) -> Fas
     async def _internal(request: Request, exc: Exception) -> JSONResponse:
         LOG.error("internal error on %s: %s", request.url.path, type(exc).__name__)
         return _error(500, "internal error; the check could not be completed (please report it to your instructor)")
+
+
+def create_app(service: CheckService, options: WebOptions = WebOptions()) -> FastAPI:
+    """The app for one worker process."""
+    app = FastAPI(title="grader self-check", docs_url=None, redoc_url=None, openapi_url=None)
+    checks = RateLimiter(options.checks_per_minute, options.burst)
+    previews = RateLimiter(options.checks_per_minute * 10, options.burst * 10)
+    lanes = anyio.CapacityLimiter(options.threads)
+    xlsx_cap = service.opts.limits.max_xlsx_bytes + MULTIPART_OVERHEAD
+    app.add_middleware(BodyLimit, limit=lambda path: xlsx_cap if path == "/api/check-file" else MAX_BODY)
+    app.mount("/static", StaticFiles(directory=STATIC), name="static")
+    page = render_page(service.opts.rubric, service.stations())
+
+    _error_handlers(app, xlsx_cap)
 
     def limited(limiter: RateLimiter, request: Request) -> JSONResponse | None:
         if limiter.allow(_client(request)):
@@ -154,13 +177,7 @@ def create_app(service: CheckService, options: WebOptions = WebOptions()) -> Fas
     async def check(request: Request) -> JSONResponse:
         if (refused := limited(checks, request)) is not None:
             return refused
-        try:
-            doc = json.loads(await request.body())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            return _error(400, f"body is not valid JSON: {getattr(exc, 'msg', exc)}")
-        except (RecursionError, ValueError):
-            return _error(400, "body is not valid JSON (nested too deeply or a number too long)")
-        return await run_check(service.check_document, doc)
+        return await run_check(service.check_document, await _json_body(request))
 
     @app.post("/api/check-file")
     async def check_file(request: Request, file: UploadFile) -> JSONResponse:
@@ -180,10 +197,7 @@ def create_app(service: CheckService, options: WebOptions = WebOptions()) -> Fas
     async def preview_(request: Request) -> JSONResponse:
         if (refused := limited(previews, request)) is not None:
             return refused
-        try:
-            body = json.loads(await request.body())
-        except (ValueError, RecursionError):
-            return _error(400, "body is not valid JSON")
+        body = await _json_body(request)
         if not isinstance(body, dict) or not isinstance(body.get("item"), str) or not isinstance(body.get("text"), str):
             return _error(422, 'expected {"item": "<item>", "text": "<what was typed>"}')
         return JSONResponse(await anyio.to_thread.run_sync(preview, body["item"], body["text"], limiter=lanes))
