@@ -218,3 +218,19 @@ def test_rig_memo_simulates_each_design_once(monkeypatch: pytest.MonkeyPatch) ->
     other = object()
     assert (other in memo) is False and (other in memo) is False  # a failed simulation does not block for ever
     assert (other in memo) is False
+
+
+def test_serve_builds_each_worker_from_its_options(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """``grader serve``'s worker factory: rubric, stations folder (keys beside it) and rate limit from the env."""
+    from grader.web.commands import ENV, app_from_env
+
+    from .conftest import REFERENCE, RUBRIC
+
+    monkeypatch.setenv(ENV, json.dumps({"rubric": str(RUBRIC), "stations": str(REFERENCE / "datasets"),
+                                        "rate_limit": 60, "burst": 1}))
+    client = TestClient(app_from_env())
+    assert client.get("/api/stations").json() == {"stations": ["default"]}
+    assert [client.post("/api/check", json={"answers": {}}).status_code for _ in range(2)] == [200, 429]
+    monkeypatch.setenv(ENV, json.dumps({"stations": str(tmp_path)}))  # no lab data: prelab only, said so
+    body = TestClient(app_from_env()).post("/api/check", json={"answers": {}}).json()
+    assert any("no lab data" in n for n in body["notes"]) and len(body["items"]) == 3
