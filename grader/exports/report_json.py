@@ -8,15 +8,17 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 from grader.grading.results import SubmissionResult
+from grader.precision import round_sig
 
 
 def clean(obj: Any) -> Any:
-    """JSON-safe, deterministic: floats to 10 significant digits, non-finite to null, mappings sorted."""
+    """JSON-safe, deterministic: floats at :mod:`grader.precision` (6 significant digits, the same
+    bytes on every CPU), non-finite to null, mappings sorted."""
     if isinstance(obj, bool) or obj is None or isinstance(obj, (int, str)):
         return obj
     if isinstance(obj, float) or hasattr(obj, "__float__") and not isinstance(obj, complex):
         x = float(obj)
-        return float(f"{x:.10g}") + 0.0 if math.isfinite(x) else None
+        return round_sig(x) if math.isfinite(x) else None
     if isinstance(obj, complex):
         return [clean(obj.real), clean(obj.imag)]
     if isinstance(obj, Mapping):

@@ -99,7 +99,7 @@ def _ecf_candidate(name: str, item: RubricItem, env: CheckEnv, done: Mapping[str
         return None
     kname = env.rubric.key_name(name)
     unit = item.unit or env.kc.unit(kname)
-    expected = env.kc.value(kname) if env.reveal else None
+    expected = env.kc.value(kname) if env.reveal and env.kc.key.quantities[kname].reachable else None
     return result(name, item, "correct_ecf", item.ecf_credit, fb.ecf(name, given, wrong, expected, unit),
                   mistake="ecf", detail={"recomputed": target, "from": wrong}, value=v)
 
@@ -121,11 +121,16 @@ def check_quantity(name: str, raw: Any, env: CheckEnv, done: Mapping[str, ItemRe
     if v is None:
         text = fb.wrong_dimension(name, given, dimension_text(q.units), unit, dimension_text(unit))
         return result(name, item, "wrong_dimension", 0.0, text, detail={"unit_given": str(q.units), "unit_expected": unit})
-    expected = float(entry.value)
     absolute = _absolute(item.tolerance.absolute, key_unit, unit)
     accept = lambda x, e: item.tolerance.accepts(x, e, absolute=absolute)  # noqa: E731
+    if not entry.reachable:  # a number for a value the rig does not have
+        text = fb.number_not_reachable(name, given, entry.reason if env.reveal else None)
+        fallback = result(name, item, "incorrect", 0.0, text, detail={"value": v, "unit": key_unit,
+                                                                       "key_status": entry.status}, value=v)
+        return _ecf_candidate(name, item, env, done, accept, v, given) or fallback
+    expected = float(entry.value)
     detail = {"value": v, "unit": key_unit, "expected": expected, "tolerance": item.tolerance.describe(unit)}
-    alts = [float(env.kc.value(a)) for a in item.also_accept]
+    alts = [float(env.kc.value(a)) for a in item.also_accept if env.kc.key.quantities[a].reachable]
     if item.tolerance.accepts(v, expected, absolute=absolute, interval=entry.interval) or any(accept(v, a) for a in alts):
         return result(name, item, "correct", 1.0, fb.correct(name, given), detail=detail, value=v)
     shown_expected = to_unit(Q_(expected, key_unit), unit)

@@ -74,3 +74,18 @@ def unit_slip(item: str, slip: Slip, expected: float | None, unit: str) -> str:
 def known_mistake(item: str, given: str, text: str, expected: float | None, unit: str) -> str:
     tail = f" (Expected {shown(expected, unit)}.)" if expected is not None else ""
     return f"{name(item)} = {given}: {text}{tail}"
+
+
+def number_not_reachable(item: str, given: str, reason: str | None) -> str:
+    """A number for an item the identified rig does not have; ``reason`` (None: key hidden) says why."""
+    if reason is not None:
+        return (f"{name(item)} = {given}: the rig identified from your station's data has no such value "
+                f"({reason}). Answer 'not reachable'.")
+    return (f"{name(item)} = {given} does not match your station's data. Check whether such a value exists "
+            f"for your rig at all; if it does not, answer 'not reachable'.")
+
+
+def reachable_after_all(item: str, expected: float | None, unit: str) -> str:
+    """A not-reachable answer for an item the identified rig does have."""
+    tail = f" (expected {shown(expected, unit)})" if expected is not None else "; compute it"
+    return f"{name(item)}: not reachable is incorrect: your station's data give this value{tail}."

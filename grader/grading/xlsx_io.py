@@ -20,7 +20,7 @@ from openpyxl import Workbook, load_workbook
 from openpyxl.worksheet.datavalidation import DataValidation
 
 from grader.errors import SubmissionError
-from grader.grading.items import ITEMS
+from grader.grading.items import ITEMS, MAY_BE_NOT_REACHABLE
 from grader.grading.limits import DEFAULT_LIMITS, Limits
 from grader.grading.results import Student
 from grader.grading.submissions import (
@@ -216,6 +216,9 @@ def read_xlsx(path: Path, *, limits: Limits = DEFAULT_LIMITS) -> Submission:
         wb.close()
 
 
+NOT_REACHABLE_HINT = "; if your rig has no such value, write 'not reachable' (or 'none', 'n/a')"
+
+
 def _unit_hint(item: str, gain_unit: str) -> str:
     spec = ITEMS[item]
     if spec.kind == "expression":
@@ -232,7 +235,8 @@ def _answer_rows(items: list[str], gain_unit: str) -> list[tuple[str, str, str, 
         if spec.kind == "design":
             rows += [(f"{item}.{p}", _design_hint(p, gain_unit), spec.description, spec.kind) for p in DESIGN_PARTS[item]]
         elif spec.kind != "poles":
-            rows.append((item, _unit_hint(item, gain_unit), spec.description, spec.kind))
+            tail = NOT_REACHABLE_HINT if item in MAY_BE_NOT_REACHABLE else ""
+            rows.append((item, _unit_hint(item, gain_unit), spec.description + tail, spec.kind))
     return rows
 
 
@@ -240,7 +244,8 @@ def _answers_sheet(wb: Workbook, items: list[str], gain_unit: str) -> None:
     ans = wb.create_sheet("answers")
     ans.append(("item", "value", "unit", "expected unit", "description"))
     numbers = DataValidation(type="decimal", operator="between", formula1="-1E+300", formula2="1E+300",
-                             errorStyle="warning", error="Type a number; put its unit in column C.", showErrorMessage=True)
+                             errorStyle="warning", error="Type a number; put its unit in column C. (A prediction your "
+                             "rig does not have: type 'not reachable'.)", showErrorMessage=True)
     ans.add_data_validation(numbers)
     for label, unit, description, kind in _answer_rows(items, gain_unit):
         ans.append((label, None, None, unit, description))
