@@ -4,16 +4,22 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from rich.console import Console
-from rich.table import Table
+from grader.outpaths import output_file, output_folder
 
-from grader.keys import Key, key_for_dataset, write_key
-from grader.units import fmt
+if TYPE_CHECKING:  # heavy modules are imported inside the handlers (fast start-up)
+    from rich.table import Table
+
+    from grader.keys import Key
 
 
 def key_table(key: Key, *, title: str) -> Table:
     """A readable table of a key's scalar quantities (course units)."""
+    from rich.table import Table
+
+    from grader.units import fmt
+
     table = Table(title=title)
     for col in ("item", "value", "95 % interval"):
         table.add_column(col, no_wrap=True)
@@ -26,6 +32,11 @@ def key_table(key: Key, *, title: str) -> Table:
 
 
 def _key(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    from grader.keys import key_for_dataset, write_key
+
+    output_file(args.output, example="key.json")
     key = key_for_dataset(args.dataset)
     out = write_key(key, args.output)
     console = Console()
@@ -37,7 +48,7 @@ def _key(args: argparse.Namespace) -> int:
 def _demo(args: argparse.Namespace) -> int:
     from grader.demo import run_demo
 
-    return run_demo(Path(args.out))
+    return run_demo(output_folder(args.out))
 
 
 def register(sub: argparse._SubParsersAction) -> None:

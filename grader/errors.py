@@ -17,14 +17,18 @@ The CLI prints that message and exits non-zero; no traceback reaches a user.
     ├── ExpressionError    a submitted expression is rejected by the AST whitelist or limits
     ├── SimulationError    the rig simulator was given an unknown effect or an out-of-range value
     ├── AssessmentError    a survey or exam-score file is malformed
-    └── DiagnosisError     the gap diagnosis cannot run on the given data
+    ├── DiagnosisError     the gap diagnosis cannot run on the given data
+    └── OutputPathError    an output path cannot take the file or folder a verb writes
 
 :func:`validation_message` turns a pydantic ``ValidationError`` into such a one-line message.
 """
 
 from __future__ import annotations
 
-from pydantic import ValidationError
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pydantic is imported by the modules that validate, not by the CLI's start-up
+    from pydantic import ValidationError
 
 
 class GraderError(Exception):
@@ -73,6 +77,10 @@ class AssessmentError(GraderError):
 
 class DiagnosisError(GraderError):
     """The gap diagnosis cannot run on the given data."""
+
+
+class OutputPathError(GraderError):
+    """An output path is a folder where a file is expected (or the reverse), or cannot be written."""
 
 
 def validation_message(source: str, exc: ValidationError) -> str:

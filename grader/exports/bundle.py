@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from grader.exports.atomic import workbook_bytes, write_bytes, write_text
+from grader.exports.atomic import workbook_bytes
 from grader.exports.canvas import canvas_csv
 from grader.exports.feedback_md import feedback_md
 from grader.exports.gradebook_xlsx import gradebook
@@ -13,6 +13,7 @@ from grader.exports.gradescope import results_json
 from grader.exports.report_json import report_json
 from grader.grading.results import SubmissionResult
 from grader.grading.rubric import Rubric
+from grader.outpaths import write_bytes, write_text
 
 
 def write_outputs(results: Sequence[SubmissionResult], out: Path, rubric: Rubric, *, assignment: str,

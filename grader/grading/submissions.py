@@ -174,7 +174,7 @@ def read_submission(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> Sub
     """Read a JSON, YAML or XLSX submission; raises SubmissionError naming the file and field."""
     path = Path(path)
     if not path.is_file():
-        raise SubmissionError(f"{path}: not a file")
+        raise SubmissionError(f"{path}: " + ("is a folder; give one submission file" if path.is_dir() else "file not found"))
     if path.suffix.lower() not in SUFFIXES:
         raise SubmissionError(f"{path.name}: unknown submission type (use {', '.join(SUFFIXES)})")
     if path.suffix.lower() == ".xlsx":

@@ -12,7 +12,8 @@ import pytest
 from openpyxl import load_workbook
 
 from grader.cli import main
-from grader.exports.atomic import workbook_bytes, write_text, zip_bytes
+from grader.exports.atomic import workbook_bytes, zip_bytes
+from grader.outpaths import write_text
 from grader.exports.bundle import write_outputs
 from grader.exports.canvas import canvas_csv
 from grader.exports.feedback_md import feedback_md
