@@ -67,10 +67,11 @@ def run_simulate(args: argparse.Namespace) -> int:
         raise SimulationError(f"{args.out}: is a file, but a folder is expected here; choose another output path")
     if any((args.out / n).exists() for n in MANIFEST_NAMES) and not args.overwrite:
         raise SimulationError(f"{args.out}: already holds a dataset (use --overwrite to replace its files)")
+    extra = EffectSet.parse(args.effect)
+    output_folder(args.out)  # checked before the station is read and the rig simulated
     station = load_station(args.station)
     base = EffectSet() if args.no_station_effects else station_effects(station)
-    effects = base.merged(EffectSet.parse(args.effect))
-    output_folder(args.out)
+    effects = base.merged(extra)
     try:
         root = make_dataset(station, args.out, seed=args.seed, effects=effects)
     except OSError as exc:
