@@ -61,7 +61,7 @@ def test_report_json_schema_and_clean_numbers() -> None:
 
 def test_feedback_markdown_escapes_and_explains_invalid() -> None:
     md = feedback_md(GOOD, title="Lab 4")
-    assert md.startswith("# Lab 4: g-01") and "**Score: 7 / 10**" in md and "\\| pipe" in md
+    assert md.startswith("# Lab 4 — g-01\n") and "**Score: 7 / 10**" in md and "\\| pipe" in md
     assert "unit\\_slip" not in md and "| Kq | unit mismatch | 3 / 6 |" in md
     assert "could not be graded:** not valid JSON" in feedback_md(BAD)
 
