@@ -93,14 +93,29 @@ def _grade(args: argparse.Namespace) -> int:
     write_outputs(results, out, rubric, assignment=args.assignment or rubric.assignment.name,
                   assignment_id=args.assignment_id or rubric.assignment.id)
     Console().print(summary_table(results, rubric))
-    invalid = [r for r in results if not r.valid]
     print(f"wrote {len(results)} results to {args.out}/ (grades.csv, report.json, gradebook.xlsx, results/, feedback/)")
+    _warn_duplicates(results)
+    invalid = [r for r in results if not r.valid]
     if invalid:
-        print(f"{len(invalid)} submission(s) could not be graded:", file=sys.stderr)
+        print(f"{len(invalid)} submission(s) could not be graded (score 0; rows '(unreadable submission …)' "
+              "in grades.csv):", file=sys.stderr)
         for r in invalid:
-            print(f"  {Path(r.source).name}: {r.error}", file=sys.stderr)
+            print(f"  {r.source}: {r.error}", file=sys.stderr)
         return 1
     return 0
+
+
+def _warn_duplicates(results: list[SubmissionResult]) -> None:
+    """Say which submissions grades.csv does not use because their students handed in later ones."""
+    from grader.exports.bundle import source_times
+    from grader.exports.canvas import superseded
+
+    gone = superseded(results, source_times(results))
+    if gone:
+        print(f"warning: {len(gone)} submission(s) share students with a later one; grades.csv grades each "
+              "student's latest submission (by file time), report.json names it in 'superseded_by':", file=sys.stderr)
+        for sid, newer in sorted(gone.items()):
+            print(f"  {sid} -> {newer}", file=sys.stderr)
 
 
 def _check(args: argparse.Namespace) -> int:
