@@ -123,20 +123,15 @@ def _check(args: argparse.Namespace) -> int:
     from rich.markup import escape
     from rich.table import Table
 
-    from grader.grading.grade import grade_submission
     from grader.grading.pipeline import resolve_key
+    from grader.grading.selfcheck import self_check
     from grader.grading.submissions import read_submission
 
     rubric = _rubric(args)
     opts = _options(args, rubric, reveal=False)
     sub = read_submission(Path(args.submission), limits=opts.limits)  # an unreadable file: one line, exit 2
-
-    try:
-        kc = resolve_key(sub, _store(args))
-    except GraderError as exc:
-        kc = None
-        print(f"note: no lab data to check against ({exc}); checking the prelab items only")
-    result = grade_submission(sub, kc, opts)
+    store = _store(args)
+    result = self_check(sub, lambda s: resolve_key(s, store), opts)
     console = Console(highlight=False)
     table = Table(title=escape(f"grader check: {sub.submission_id}"), show_lines=True)
     for col in ("item", "status", "feedback"):
