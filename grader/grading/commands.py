@@ -97,10 +97,12 @@ def _grade(args: argparse.Namespace) -> int:
     _warn_duplicates(results)
     invalid = [r for r in results if not r.valid]
     if invalid:
-        print(f"{len(invalid)} submission(s) could not be graded (score 0; rows '(unreadable submission …)' "
-              "in grades.csv):", file=sys.stderr)
+        print(f"{len(invalid)} submission(s) could not be graded:", file=sys.stderr)
         for r in invalid:
-            print(f"  {r.source}: {r.error}", file=sys.stderr)
+            name, error = Path(r.source).name, r.error or "unknown error"
+            print(f"  {error if error.startswith(name + ':') else f'{name}: {error}'}", file=sys.stderr)
+        print("  (score 0; without readable students their grades.csv rows read '(unreadable submission ID: "
+              "no student listed)')", file=sys.stderr)
         return 1
     return 0
 

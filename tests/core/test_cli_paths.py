@@ -112,3 +112,11 @@ def test_cli_start_up_imports_no_heavy_library() -> None:
             f"print(','.join(m for m in {HEAVY!r} if m in sys.modules))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
     assert done.stdout.strip() == ""
+
+
+def test_every_writing_verb_is_in_the_table() -> None:
+    """A new verb that writes files must join FILE_VERBS or FOLDER_VERBS (check and serve write nothing)."""
+    from grader.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if a.dest == "verb")
+    assert set(sub.choices) - {"check", "serve"} == set(FILE_VERBS) | set(FOLDER_VERBS)
