@@ -28,15 +28,18 @@ def clean(obj: Any) -> Any:
     return str(obj)
 
 
-def submission_dict(r: SubmissionResult) -> dict[str, Any]:
+def submission_dict(r: SubmissionResult, superseded_by: str | None = None) -> dict[str, Any]:
     return {
         "submission_id": r.submission_id, "score": r.score, "max_score": r.max_score, "valid": r.valid, "error": r.error,
+        "superseded_by": superseded_by,
         "items": [{"item": i.item, "status": i.status, "points": i.points, "max_points": i.max_points,
                    "mistake": i.mistake, "detail": clean(i.detail), "feedback": i.feedback} for i in r.items],
     }
 
 
-def report_json(results: Iterable[SubmissionResult]) -> str:
-    """The report text (submissions sorted by id, two-space indent, trailing newline)."""
-    subs = [submission_dict(r) for r in sorted(results, key=lambda r: r.submission_id)]
+def report_json(results: Iterable[SubmissionResult], superseded: Mapping[str, str] | None = None) -> str:
+    """The report text (submissions sorted by id, two-space indent, trailing newline); ``superseded``
+    maps a submission id to the later submission that grades its students (grades.csv's rule)."""
+    gone = superseded or {}
+    subs = [submission_dict(r, gone.get(r.submission_id)) for r in sorted(results, key=lambda r: r.submission_id)]
     return json.dumps({"submissions": subs}, indent=2, ensure_ascii=False, allow_nan=False) + "\n"

@@ -8,6 +8,7 @@ that order), else by a unit slip, else it is incorrect.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import lru_cache
@@ -16,7 +17,7 @@ from typing import Any
 from grader.errors import ExpressionError
 from grader.grading import ecf, tf
 from grader.grading import feedback as fb
-from grader.grading.answers import AnswerError, Gains, dimension_text, is_blank, read_quantity, to_unit
+from grader.grading.answers import AnswerError, Gains, is_blank, read_quantity, to_unit
 from grader.grading.context import KeyContext
 from grader.grading.designs import RigVerdict
 from grader.grading.expressions import parse_expression, to_ratfunc
@@ -27,7 +28,7 @@ from grader.grading.results import READ_STATUSES, ItemResult
 from grader.grading.rubric import Rubric, RubricItem
 from grader.grading.units_diagnosis import diagnose_slip
 from grader.model.params import Feedback
-from grader.units import Q_, parse_quantity
+from grader.units import Q_, dimension_words, parse_quantity, pretty_unit
 
 
 @dataclass(frozen=True)
@@ -78,13 +79,14 @@ def _absolute(a: str | float | None, key_unit: str, unit: str) -> float:
 
 
 def _given(raw: Any, unit: str) -> str:
-    """The answer as the student wrote it (a bare number with the unit it was taken in)."""
+    """The answer as the student wrote it, its unit in the course's style (a bare number: the unit it was taken in)."""
     text = raw.strip() if isinstance(raw, str) else f"{raw:g}"
-    try:
-        float(text)
-    except ValueError:
+    m = re.fullmatch(r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*)", text)
+    if m is None:
         return text
-    return text if unit == "dimensionless" else f"{text} (taken in {fb.pretty_unit(unit)})"
+    if m.group(2):
+        return f"{m.group(1)} {pretty_unit(m.group(2))}"
+    return text if unit == "dimensionless" else f"{text} (taken in {pretty_unit(unit)})"
 
 
 def _ecf_candidate(name: str, item: RubricItem, env: CheckEnv, done: Mapping[str, ItemResult],
@@ -119,7 +121,7 @@ def check_quantity(name: str, raw: Any, env: CheckEnv, done: Mapping[str, ItemRe
     given = _given(raw, unit)
     v = to_unit(q, key_unit)
     if v is None:
-        text = fb.wrong_dimension(name, given, dimension_text(q.units), unit, dimension_text(unit))
+        text = fb.wrong_dimension(name, given, dimension_words(q.units), unit, dimension_words(unit))
         return result(name, item, "wrong_dimension", 0.0, text, detail={"unit_given": str(q.units), "unit_expected": unit})
     absolute = _absolute(item.tolerance.absolute, key_unit, unit)
     accept = lambda x, e: item.tolerance.accepts(x, e, absolute=absolute)  # noqa: E731

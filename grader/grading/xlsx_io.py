@@ -27,7 +27,7 @@ from grader.grading.submissions import (
     InlineData,
     InvalidAnswer,
     Submission,
-    answer_notes,
+    canonical_answers,
     safe_id,
 )
 
@@ -203,8 +203,9 @@ def read_xlsx(path: Path, *, limits: Limits = DEFAULT_LIMITS) -> Submission:
             answers = _answers(wb, limits)
             if "poles" in wb.sheetnames and answers.get("closed_loop_poles") is None:
                 answers["closed_loop_poles"] = _poles(wb, limits)
+            answers, notes = canonical_answers(answers)
             return Submission(sid, path, _students(wb, path.name, limits), str(info.get("station") or "default")[:64],
-                              answers, _data(wb, path.name, limits), answer_notes(answers))
+                              answers, _data(wb, path.name, limits), notes)
         except SubmissionError as exc:
             msg = str(exc)
             raise SubmissionError(msg if msg.startswith(f"{path.name}:") else f"{path.name}: {msg}") from None
