@@ -50,6 +50,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except GraderError as exc:
         print(f"grader {args.verb}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # a file system failure a check could not foresee (disk full, lost mount …)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"grader {args.verb}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

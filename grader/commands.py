@@ -6,19 +6,23 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rich.console import Console
-from rich.table import Table
+from grader.outpaths import output_file, output_folder
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # heavy modules are imported inside the handlers (fast start-up)
+    from rich.table import Table
+
     from grader.keys import Key
 
 
 def key_table(key: Key, *, title: str) -> Table:
     """A readable table of a key's scalar quantities (course units); a not-reachable item
     says so (its reason is in :func:`key_notes`), a value with a note is starred."""
+    from rich.markup import escape
+    from rich.table import Table
+
     from grader.units import fmt
 
-    table = Table(title=title)
+    table = Table(title=escape(title))
     for col in ("item", "value", "95 % interval"):
         table.add_column(col, no_wrap=True)
     for name, e in key.quantities.items():
@@ -39,14 +43,18 @@ def key_notes(key: Key) -> list[str]:
 
 
 def _key(args: argparse.Namespace) -> int:
+    from rich.console import Console
+    from rich.markup import escape
+
     from grader.keys import key_for_dataset, write_key
 
+    output_file(args.output, example="key.json")
     key = key_for_dataset(args.dataset)
     out = write_key(key, args.output)
     console = Console()
     console.print(key_table(key, title=f"Answer key for {key.station} ({Path(args.dataset).name})"))
     for line in key_notes(key):
-        console.print(line, highlight=False)
+        console.print(escape(line), highlight=False)
     console.print(f"wrote {out}  (inputs sha256 {key.inputs_sha256[:12]}…, grader {key.generated_by['version']})")
     return 0
 
@@ -54,7 +62,7 @@ def _key(args: argparse.Namespace) -> int:
 def _demo(args: argparse.Namespace) -> int:
     from grader.demo import run_demo
 
-    return run_demo(Path(args.out))
+    return run_demo(output_folder(args.out))
 
 
 def register(sub: argparse._SubParsersAction) -> None:

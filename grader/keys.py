@@ -24,6 +24,7 @@ from grader.errors import KeyFileError, validation_message
 from grader.identify import Estimate, Identification, identify, predictions
 from grader.model.linear import closed_loop_poles
 from grader.model.params import RigParams
+from grader.outpaths import write_text
 from grader.precision import round_group, round_sig, rounded
 
 SCHEMA = "grader.key/1"
@@ -138,12 +139,8 @@ def key_json(key: Key) -> str:
 
 
 def write_key(key: Key, path: str | Path) -> Path:
-    """Write ``key`` atomically."""
-    path = Path(path)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(key_json(key), encoding="utf-8")
-    tmp.replace(path)
-    return path
+    """Write ``key`` atomically (creating missing parent folders)."""
+    return write_text(path, key_json(key))
 
 
 def read_key(path: str | Path) -> Key:

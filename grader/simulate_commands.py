@@ -10,9 +10,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from grader.datasets.load import MANIFEST_NAMES
 from grader.errors import SimulationError
-from grader.model.effects import EFFECTS, EffectSet
+from grader.outpaths import output_folder
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -38,6 +37,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def effects_table() -> str:
     """The effects, parameters, defaults, admissible and typical ranges as plain text."""
+    from grader.model.effects import EFFECTS
+
     lines = [f"{'effect:param':<34} {'unit':<9} {'default':>8}  {'allowed':<16} {'typical':<14}"]
     for name, spec in EFFECTS.items():
         if not spec.params:
@@ -50,6 +51,8 @@ def effects_table() -> str:
 
 
 def run_simulate(args: argparse.Namespace) -> int:
+    from grader.datasets.load import MANIFEST_NAMES
+    from grader.model.effects import EffectSet
     from grader.stations import load_station
     from grader.synth import make_dataset, station_effects
 
@@ -61,12 +64,14 @@ def run_simulate(args: argparse.Namespace) -> int:
     if args.seed < 0:
         raise SimulationError(f"--seed must be a non-negative integer, got {args.seed}")
     if args.out.exists() and not args.out.is_dir():
-        raise SimulationError(f"{args.out}: exists and is not a folder")
+        raise SimulationError(f"{args.out}: is a file, but a folder is expected here; choose another output path")
     if any((args.out / n).exists() for n in MANIFEST_NAMES) and not args.overwrite:
         raise SimulationError(f"{args.out}: already holds a dataset (use --overwrite to replace its files)")
+    extra = EffectSet.parse(args.effect)
+    output_folder(args.out)  # checked before the station is read and the rig simulated
     station = load_station(args.station)
     base = EffectSet() if args.no_station_effects else station_effects(station)
-    effects = base.merged(EffectSet.parse(args.effect))
+    effects = base.merged(extra)
     try:
         root = make_dataset(station, args.out, seed=args.seed, effects=effects)
     except OSError as exc:

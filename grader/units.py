@@ -29,7 +29,18 @@ import pint
 
 from grader.errors import UnitError
 
-ureg: Final = pint.UnitRegistry(autoconvert_offset_to_baseunit=True)
+
+
+def _registry() -> pint.UnitRegistry:
+    """The registry, its parsed definitions cached on disk by pint (start-up ~8x faster); without
+    a writable cache folder, built from the definitions file as before."""
+    try:
+        return pint.UnitRegistry(autoconvert_offset_to_baseunit=True, cache_folder=":auto:")
+    except Exception:  # noqa: BLE001 - any cache problem (read-only home, corrupt file): no cache
+        return pint.UnitRegistry(autoconvert_offset_to_baseunit=True)
+
+
+ureg: Final = _registry()
 ureg.define("gpm = gallon / minute")
 Q_ = ureg.Quantity
 Quantity = pint.Quantity
@@ -82,8 +93,8 @@ def parse_quantity(text: str | float | int, *, where: str = "quantity", default_
     text = _guard(text, where)
     try:
         q = ureg.parse_expression(text.replace("^", "**"))
-    except Exception as exc:  # pint's parser raises many types (even AssertionError) on hostile text
-        raise UnitError(f"{where}: cannot parse {text!r} as a quantity ({type(exc).__name__})") from None
+    except Exception:  # pint's parser raises many types (even AssertionError) on hostile text
+        raise UnitError(f"{where}: cannot read {text!r} as a number with a unit{_did_you_mean(text)}") from None
     if not isinstance(q, pint.Quantity):
         q = Q_(float(q), default_unit or "dimensionless")
     elif not q._units and default_unit is not None:  # no unit written at all (not even %, ppm)
@@ -98,8 +109,8 @@ def parse_unit(text: str, *, where: str = "unit") -> pint.Unit:
     text = _guard(text, where)
     try:
         q = ureg.parse_expression(text.replace("^", "**"))
-    except Exception as exc:  # as above
-        raise UnitError(f"{where}: unknown unit {text!r} ({type(exc).__name__})") from None
+    except Exception:  # as above
+        raise UnitError(f"{where}: unknown unit {text!r}{_did_you_mean(text)}") from None
     if isinstance(q, pint.Quantity):
         if float(q.magnitude) != 1.0:
             raise UnitError(f"{where}: {text!r} is a quantity, not a unit")
@@ -112,9 +123,8 @@ def to_float(q: pint.Quantity, unit: str, *, where: str = "quantity") -> float:
     try:
         return float(q.to(unit).magnitude)
     except pint.errors.DimensionalityError:
-        raise UnitError(
-            f"{where}: {q:~P} has dimension {q.dimensionality}, expected {ureg.parse_units(unit).dimensionality} ({unit})"
-        ) from None
+        raise UnitError(f"{where}: {q.units:~P} is {dimension_words(q.units)}; expected {dimension_words(unit)} "
+                        f"({pretty_unit(unit)})") from None
 
 
 def quantity_to_float(text: str | float | int, unit: str, *, where: str = "quantity") -> float:
@@ -122,7 +132,89 @@ def quantity_to_float(text: str | float | int, unit: str, *, where: str = "quant
     return to_float(parse_quantity(text, where=where, default_unit=unit), unit, where=where)
 
 
+_SUPERSCRIPT: Final = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def pretty_unit(unit: str) -> str:
+    """``in**3/s/mA`` or ``in^3/s/mA`` -> ``in³/s/mA``: the unit as the course writes it, never reordered."""
+    if unit == "dimensionless":
+        return ""
+    text = re.sub(r"\*\*\(?(-?\d+)\)?", lambda m: m.group(1).translate(_SUPERSCRIPT), unit.replace("^", "**"))
+    return text.replace(" ", "").replace("*", "·")
+
+
 def fmt(value: float, unit: str, digits: int = 4) -> str:
-    """Format a float already in ``unit`` as ``"0.03850 in³/s/mA"`` for reports."""
-    pretty = f"{ureg.Unit(unit):~P}" if unit != "dimensionless" else ""
-    return f"{value:.{digits}g} {pretty}".strip()
+    """The one quantity formatter of every report: ``"0.03850 in³/s/mA"``, ``"21570 psi/in³"``
+    (``digits`` significant digits, positional from 1e-4 to 1e7, the unit as :func:`pretty_unit` writes it)."""
+    return f"{number(value, digits)} {pretty_unit(unit)}".strip()
+
+
+def number(value: float, digits: int = 4) -> str:
+    """``value`` to ``digits`` significant digits, positional between 1e-4 and 1e7, else ``1.234e+08``."""
+    if not math.isfinite(value) or value == 0 or not 1e-4 <= abs(value) < 1e7:
+        return f"{value:.{digits}g}"
+    decimals = digits - 1 - math.floor(math.log10(abs(value)))
+    return f"{round(value, decimals):.{max(decimals, 0)}f}"
+
+
+#: Dimensions a student knows by name, with the course unit that shows each.
+_NAMED: Final = (
+    ("a frequency", "1/s"), ("a flow", "in**3/s"), ("a velocity", "in/s"), ("an acceleration", "in/s**2"),
+    ("a volume", "in**3"), ("an area", "in**2"), ("a length", "in"), ("a time", "s"), ("a voltage", "V"),
+    ("a current", "mA"), ("a force", "lbf"), ("a pressure", "psi"), ("a mass", "lbf*s**2/in"),
+)
+
+
+def dimension_words(unit: str | pint.Unit) -> str:
+    """The dimension of ``unit`` in words: ``"V/s"`` -> ``"a voltage per time"``, ``"V/in"`` ->
+    ``"a voltage per length"``; pint's ``[length]``-style text only when no name fits."""
+    dims = (ureg.Unit(unit) if isinstance(unit, str) else unit).dimensionality
+    if not dims:
+        return "a plain number (no unit)"
+    named = [(words, ureg.Unit(u).dimensionality) for words, u in _NAMED]
+    for words, d in named:
+        if d == dims:
+            return words
+    for words, d in named:
+        for per, e in named:
+            if d / e == dims:
+                return f"{words} per {per.split(' ', 1)[1]}"
+    for words, d in named:
+        for per, e in named:
+            if d / e == 1 / dims:
+                return f"a {per.split(' ', 1)[1]} per {words.split(' ', 1)[1]}".replace("a a", "an a")
+    return f"of dimension {dims}"
+
+
+_UNIT_WORDS: Final = ("in", "ft", "mm", "cm", "m", "s", "ms", "min", "Hz", "rad", "V", "mV", "mA", "A", "lbf", "lb",
+                      "N", "psi", "Pa", "kPa", "MPa", "bar", "gal", "gpm", "L", "kg", "g", "deg", "percent")
+
+
+def _did_you_mean(text: str) -> str:
+    """``"; did you mean 'in^3/s/mA'?"`` when a simple repair makes ``text`` readable, else ``""``.
+
+    Repairs: a missing ``^`` before a power (``in3`` -> ``in^3``) and unit names one typo away
+    from a common unit (``psii`` -> ``psi``)."""
+    import difflib
+
+    fixed = re.sub(r"(?<=[A-Za-z])(\d{1,2})(?![\d.])", r"^\1", text)
+
+    def near(m: re.Match[str]) -> str:
+        word = m.group(0)
+        try:
+            if word in ureg:
+                return word
+        except Exception:  # noqa: BLE001 - pint's lookup raises on names such as "_"
+            return word
+        close = difflib.get_close_matches(word, _UNIT_WORDS, n=1, cutoff=0.75)
+        return close[0] if close else word
+
+    fixed = re.sub(r"[A-Za-z_µ°]+", near, fixed)
+    if fixed == text:
+        return ""
+    try:
+        ureg.parse_expression(_guard(fixed, "suggestion").replace("^", "**"))
+    except Exception:  # noqa: BLE001 - the repair did not help; say nothing
+        return ""
+    unit = re.sub(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*", "", fixed)
+    return f"; did you mean {unit or fixed}?"

@@ -96,9 +96,10 @@ class Lab:
                         "poles": [f"{z.real:.5g}{z.imag:+.5g}j" for z in np.roots(coeffs)]})
         return out
 
-    def predictions(self, p: RigParams) -> dict[str, float]:
+    def predictions(self, p: RigParams) -> dict[str, Any]:
         kv = float(self.ramp["Kp"]) * p.Kamp * p.Kpot * p.Kq / p.A
-        return {"Kp_no_overshoot": sig(gain_no_overshoot(p)), "Kp_25_overshoot": sig(gain_for_overshoot(p, 0.25)),
+        k25 = gain_for_overshoot(p, 0.25)
+        return {"Kp_no_overshoot": sig(gain_no_overshoot(p)), "Kp_25_overshoot": "not reachable" if k25 is None else sig(k25),
                 "ramp_ess_P": f"{sig(float(self.ramp['ramp rate [in/s]']) / kv)} in"}
 
     def leakage_left_in(self) -> float:
@@ -276,6 +277,22 @@ def ecf_cases(lab: Lab) -> dict[str, Case]:
     }
 
 
+def not_reachable_cases(lab: Lab) -> dict[str, Case]:
+    """'not reachable' for items the rig has; and, from a too low Kce (light damping), a student
+    model that overshoots at most ~20 % before it turns unstable: no 25 % gain (error carried forward)."""
+    kce = lab.v["Kce"] * 0.4
+    p = lab.model(Kce=kce)
+    assert gain_for_overshoot(p, 0.25) is None
+    return {
+        "not_reachable_for_reachable": ({"Kp_25_overshoot": "not reachable", "ramp_ess_P": "N/A"},
+                                        {"Kp_25_overshoot": expect("incorrect", None, 0, "Kp_25_overshoot"),
+                                         "ramp_ess_P": expect("incorrect", None, 0, "ramp_ess_P")}),
+        "ecf_not_reachable": ({"Kce": f"{sig(kce)} in^3/s/psi", **lab.predictions(p), "closed_loop_poles": lab.poles(p)},
+                              {"Kce": expect("incorrect", None, 0, "Kce"), "Kp_no_overshoot": ecf("Kp_no_overshoot"),
+                               "Kp_25_overshoot": ecf("Kp_25_overshoot"), "closed_loop_poles": ecf("closed_loop_poles")}),
+    }
+
+
 def design_cases() -> dict[str, Case]:
     d = RUBRIC.items["pd_design"].design
     assert d is not None
@@ -294,7 +311,7 @@ def design_cases() -> dict[str, Case]:
 def cases(lab: Lab) -> dict[str, Case]:
     """fixture name -> (answer changes, expected verdicts of the changed items)."""
     return {"correct": ({}, {}), **unit_cases(lab), **number_mistakes(lab), **model_mistakes(lab), **tf_cases(),
-            **ecf_cases(lab), **design_cases()}
+            **ecf_cases(lab), **not_reachable_cases(lab), **design_cases()}
 
 
 HOSTILE: dict[str, tuple[str, dict[str, Any]]] = {
@@ -392,6 +409,10 @@ def main() -> None:
     expected["correct.yaml"] = {"valid": True, "submission_id": "correct-yaml", "items": {}, "others": "correct"}
     write_xlsx(HERE / "correct.xlsx", "correct-xlsx", base)
     expected["correct.xlsx"] = {"valid": True, "submission_id": "correct-xlsx", "items": {}, "others": "correct"}
+    nr_changes, nr_verdicts = not_reachable_cases(lab)["not_reachable_for_reachable"]
+    write_xlsx(HERE / "not_reachable.xlsx", "not-reachable-xlsx", {**base, **nr_changes})
+    expected["not_reachable.xlsx"] = {"valid": True, "submission_id": "not-reachable-xlsx", "items": nr_verdicts,
+                                      "others": "correct"}
     write_xlsx(HERE / "xlsx_formula.xlsx", "xlsx-formula", {k: v for k, v in base.items() if k != "Kpot"}, formula=True)
     expected["xlsx_formula.xlsx"] = {"valid": True, "submission_id": "xlsx-formula",
                                      "items": {"Kpot": expect("invalid", None, 0, "Kpot")}, "others": "correct"}

@@ -19,14 +19,24 @@ Modules, bottom up: ``likert`` (cell parsing), ``tables`` (CSV/XLSX to text),
 and ``commands`` (the CLI verbs).
 """
 
-from grader.assess.exam_io import ExamData, read_exam_scores
-from grader.assess.exam_report import build_exam_report
-from grader.assess.mapping import SurveyMapping, load_mapping
-from grader.assess.runner import run_exam, run_survey
-from grader.assess.schemas import ExamReport, SurveyReport
-from grader.assess.survey_io import SurveyData, read_survey
-from grader.assess.survey_report import build_survey_report
-from grader.assess.templates import write_exam_template, write_survey_template
+from importlib import import_module
+from typing import Any
+
+#: Public name -> defining module (imported on first use, so the CLI starts fast).
+_EXPORTS = {
+    "ExamData": "exam_io", "read_exam_scores": "exam_io", "build_exam_report": "exam_report",
+    "SurveyMapping": "mapping", "load_mapping": "mapping", "run_exam": "runner", "run_survey": "runner",
+    "ExamReport": "schemas", "SurveyReport": "schemas", "SurveyData": "survey_io", "read_survey": "survey_io",
+    "build_survey_report": "survey_report", "write_exam_template": "templates",
+    "write_survey_template": "templates",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(import_module(f"{__name__}.{_EXPORTS[name]}"), name)
+
 
 __all__ = [
     "ExamData",

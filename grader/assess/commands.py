@@ -5,15 +5,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from grader.assess.mapping import load_mapping
-from grader.assess.runner import EXAM_CHARTS, run_exam, run_survey, survey_files
-from grader.assess.templates import write_exam_template, write_survey_template
+from grader.outpaths import output_file, output_folder
 
 _MAPPING_HELP = "YAML mapping of columns to lab × statement (default: the paper's Figure 10 form)"
 
 
 def _survey(args: argparse.Namespace) -> int:
-    report = run_survey(args.responses, args.out, args.mapping)
+    from grader.assess.runner import run_survey, survey_files
+
+    report = run_survey(args.responses, output_folder(args.out), args.mapping)
     print(f"{report.respondents} respondents ({report.form} form); wrote {', '.join(survey_files(report))} "
           f"to {args.out}")
     for comparison in report.comparisons:
@@ -22,13 +22,18 @@ def _survey(args: argparse.Namespace) -> int:
 
 
 def _survey_template(args: argparse.Namespace) -> int:
-    write_survey_template(args.out, load_mapping(args.mapping))
+    from grader.assess.mapping import load_mapping
+    from grader.assess.templates import write_survey_template
+
+    write_survey_template(output_file(args.out, example="survey.xlsx"), load_mapping(args.mapping))
     print(f"wrote {args.out}")
     return 0
 
 
 def _exam(args: argparse.Namespace) -> int:
-    report = run_exam(args.scores, args.out)
+    from grader.assess.runner import EXAM_CHARTS, run_exam
+
+    report = run_exam(args.scores, output_folder(args.out))
     print(f"{report.students} students; wrote report.json, report.html, report.xlsx and "
           f"{', '.join(EXAM_CHARTS.values())} to {args.out}")
     for line in report.next_study[:1]:
@@ -37,7 +42,9 @@ def _exam(args: argparse.Namespace) -> int:
 
 
 def _exam_template(args: argparse.Namespace) -> int:
-    write_exam_template(args.out)
+    from grader.assess.templates import write_exam_template
+
+    write_exam_template(output_file(args.out, example="exam_scores.xlsx"))
     print(f"wrote {args.out}")
     return 0
 

@@ -61,6 +61,10 @@ def read_exam_scores(path: Path) -> ExamData:
     parsed = [_row(table, cols, number, row) for number, row in records]
     _check_unique_students(table, cols, [(n, p[0]) for (n, _), p in zip(records, parsed, strict=True)])
     _check_item_max(table, cols, [(n, p) for (n, _), p in zip(records, parsed, strict=True)])
+    groups = {p[1] for p in parsed}
+    if len(groups) < 2:
+        raise AssessmentError(f"{table.name}: every student is in group {groups.pop()!r}; the report compares "
+                              f"the two groups, so it needs students in both {TREATED!r} and {CONTROL!r}")
     numbers = np.array([p[3:] for p in parsed], dtype=float)
     return ExamData(
         group=tuple(p[1] for p in parsed),

@@ -138,6 +138,8 @@ def _verdict(p: ProblemReport) -> str:
     )
     if p.ancova_group_p is not None:
         text += f" Adjusted for the rest of the test: {_points(p.ancova_group_diff or 0.0)}, {fmt_p(p.ancova_group_p)}."
+    else:
+        text += " Too few students to adjust for the rest of the test (limitation: no ANCOVA)."
     if p.balance_p is not None and p.balance_p < 0.05:
         text += (
             f" The groups differed on the rest of the test ({fmt_p(p.balance_p)}), so the unadjusted "

@@ -91,8 +91,9 @@ def ancova(frame: pd.DataFrame, treated: str, control: str, level: float = 0.95)
 
     ``frame`` has columns score, group, rest and problem; the effect is treated − control.
     """
-    if frame["group"].nunique() < 2 or len(frame) < 4 or frame["rest"].nunique() < 2:
-        return None
+    terms = 3 + frame["problem"].nunique() - 1  # intercept, group, rest, problem levels beyond the first
+    if frame["group"].nunique() < 2 or len(frame) <= terms or frame["rest"].nunique() < 2:
+        return None  # no residual degree of freedom: the report says the adjustment was not possible
     formula = f"score ~ C(group, Treatment(reference={control!r})) + rest"
     if frame["problem"].nunique() > 1:
         formula += " + C(problem)"

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from xml.etree import ElementTree
 
+from grader.datasets.csvio import other_separator
 from grader.errors import AssessmentError
 
 CSV_SUFFIXES = frozenset({".csv", ".txt"})
@@ -48,26 +49,29 @@ def read_table(path: Path) -> Table:
     elif suffix in XLSX_SUFFIXES:
         raw = _read_xlsx(path)
     else:
-        raise AssessmentError(f"{path.name}: unsupported file type {suffix or '(none)'}; use .csv or .xlsx")
+        raise AssessmentError(f"{path}: unsupported file type {suffix or '(none)'}; use .csv or .xlsx")
     rows = _trim(raw)
     if not rows:
-        raise AssessmentError(f"{path.name}: the file is empty")
-    return Table(name=path.name, rows=rows)
+        raise AssessmentError(f"{path}: the file is empty")
+    return Table(name=str(path), rows=rows)
 
 
 def _read_csv(path: Path) -> list[list[str]]:
     try:
         raw = path.read_bytes()
     except OSError as exc:
-        raise AssessmentError(f"{path.name}: cannot read the file ({exc.strerror})") from exc
+        raise AssessmentError(f"{path}: cannot read the file ({exc.strerror})") from exc
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError:
         text = raw.decode("cp1252", errors="replace")
     try:
-        return [list(row) for row in csv.reader(io.StringIO(text, newline=""))]
+        rows = [list(row) for row in csv.reader(io.StringIO(text, newline=""))]
     except csv.Error as exc:
-        raise AssessmentError(f"{path.name}: not a valid CSV file ({exc})") from exc
+        raise AssessmentError(f"{path}: not a valid CSV file ({exc})") from exc
+    if rows and (sep := other_separator(rows[0])) is not None:
+        raise AssessmentError(f"{path}: this file uses {sep!r} as separator; save it as CSV with commas (,)")
+    return rows
 
 
 MAX_XLSX_BYTES = 20_000_000  # the workbook file
@@ -84,10 +88,10 @@ def _read_xlsx(path: Path) -> list[list[str]]:
     try:
         size = path.stat().st_size
         if size > MAX_XLSX_BYTES:
-            raise AssessmentError(f"{path.name}: file is {size / 1e6:.1f} MB; the limit is {MAX_XLSX_BYTES / 1e6:g} MB")
+            raise AssessmentError(f"{path}: file is {size / 1e6:.1f} MB; the limit is {MAX_XLSX_BYTES / 1e6:g} MB")
         with zipfile.ZipFile(path) as archive:
             if sum(i.file_size for i in archive.infolist()) > MAX_XLSX_UNZIPPED:
-                raise AssessmentError(f"{path.name}: workbook unpacks to more than {MAX_XLSX_UNZIPPED / 1e6:g} MB")
+                raise AssessmentError(f"{path}: workbook unpacks to more than {MAX_XLSX_UNZIPPED / 1e6:g} MB")
         workbook = load_workbook(path, read_only=True, data_only=True)
         try:
             sheet = workbook.worksheets[0]
@@ -98,16 +102,16 @@ def _read_xlsx(path: Path) -> list[list[str]]:
                 while cells and not cells[-1]:
                     cells.pop()  # trailing empty cells (a far-away stray cell pads every row)
                 if len(cells) > MAX_COLS:
-                    raise AssessmentError(f"{path.name}: more than {MAX_COLS} columns in row {n + 1}")
+                    raise AssessmentError(f"{path}: more than {MAX_COLS} columns in row {n + 1}")
                 if n >= MAX_ROWS and cells:
-                    raise AssessmentError(f"{path.name}: more than {MAX_ROWS} rows")
+                    raise AssessmentError(f"{path}: more than {MAX_ROWS} rows")
                 rows.append(cells)
             return rows[:MAX_ROWS]
         finally:
             workbook.close()
     except (OSError, zipfile.BadZipFile, InvalidFileException, ElementTree.ParseError,
             KeyError, IndexError, TypeError, ValueError) as exc:
-        raise AssessmentError(f"{path.name}: not a readable XLSX workbook ({exc})") from exc
+        raise AssessmentError(f"{path}: not a readable XLSX workbook ({exc})") from exc
 
 
 def _cell_text(value: object) -> str:

@@ -13,13 +13,20 @@ from numpy.typing import NDArray
 
 from grader.datasets.schema import TableSpec
 from grader.errors import DatasetError, UnitError
-from grader.units import parse_unit
+from grader.units import dimension_words, parse_unit
 
 MAX_BYTES = 20_000_000
 MAX_ROWS = 1_000_000
 _HEADER = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*\[(.+)\]\s*$")
 
 Table = dict[str, NDArray[np.float64]]
+
+
+def other_separator(header: list[str]) -> str | None:
+    """``";"`` (or tab) when a header row read with commas is one cell holding that separator."""
+    if len(header) == 1:
+        return next((sep for sep in (";", "\t") if sep in header[0]), None)
+    return None
 
 
 def _clip(text: str, n: int = 40) -> str:
@@ -46,7 +53,8 @@ def _parse_header(path: Path, cells: list[str], spec: TableSpec) -> list[tuple[s
             raise DatasetError(str(exc)) from None
         except Exception:
             raise DatasetError(
-                f"{path.name}: column {name!r} has unit [{unit_text}], which is not a {wanted[name]}-like unit"
+                f"{path.name}: column {name!r} has unit [{unit_text}], which is {dimension_words(unit)}; "
+                f"{name!r} needs {dimension_words(wanted[name])} (e.g. [{wanted[name]}])"
             ) from None
         out.append((name, scale, wanted[name]))
     missing = [c for c in spec.required if c not in {n for n, _, _ in out}]
@@ -75,6 +83,8 @@ def read_table(path: Path, spec: TableSpec) -> Table:
     rows = [r for r in rows if any(c.strip() for c in r)]
     if not rows:
         raise DatasetError(f"{path.name}: empty file")
+    if (sep := other_separator(rows[0])) is not None:
+        raise DatasetError(f"{path.name}: this file uses {sep!r} as separator; save it as CSV with commas (,)")
     header = _parse_header(path, rows[0], spec)
     body = rows[1:]
     if len(body) > MAX_ROWS:

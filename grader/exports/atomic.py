@@ -1,40 +1,17 @@
-"""Atomic, deterministic file writing (temporary file + rename; fixed zip timestamps)."""
+"""Deterministic file contents: fixed zip and workbook timestamps (atomic writing: :mod:`grader.outpaths`)."""
 
 from __future__ import annotations
 
 import io
-import os
 import re
-import tempfile
 import zipfile
 from collections.abc import Iterable
 from datetime import datetime
-from pathlib import Path
 
 from openpyxl import Workbook
 
 ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 WORKBOOK_TIME = datetime(2000, 1, 1)
-
-
-def write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (a reader never sees a partial file)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
-def write_text(path: str | Path, text: str) -> Path:
-    return write_bytes(path, text.encode("utf-8"))
 
 
 def zip_bytes(entries: Iterable[tuple[str, bytes, int]]) -> bytes:

@@ -1,13 +1,13 @@
-"""``grades.csv`` in Canvas's gradebook import format: one row per student of every submission."""
+"""``grades.csv`` in Canvas's gradebook import format: one row per student (their latest submission)."""
 
 from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 
 from grader.exports.cells import csv_text
-from grader.grading.results import SubmissionResult
+from grader.grading.results import Student, SubmissionResult
 
 HEADER = ("Student", "ID", "SIS User ID", "SIS Login ID", "Section")
 
@@ -17,15 +17,55 @@ def score_text(x: float) -> str:
     return f"{x:.2f}".rstrip("0").rstrip(".")
 
 
-def canvas_csv(results: Iterable[SubmissionResult], *, assignment: str, assignment_id: str) -> str:
-    """The CSV text; a submission without readable students still gets a row (named after its id)."""
+def student_key(s: Student) -> str:
+    """Who a student is: the Canvas id, else the SIS user id, else the login, else the name (any case)."""
+    return next((f"{k}:{v.strip().casefold()}" for k, v in (("id", s.canvas_id), ("sis", s.sis_user_id),
+                                                           ("login", s.login_id), ("name", s.name)) if v.strip()), "")
+
+
+def latest(results: Iterable[SubmissionResult], times: Mapping[str, float]) -> dict[str, SubmissionResult]:
+    """Each student's (by :func:`student_key`) graded submission.
+
+    The rule (docs/reference/report-files.md): a student's grade comes from their latest
+    submission by file time (``times``: submission id -> modification time in seconds); equal
+    times go to the higher score, then to the later submission id."""
+    rank = lambda r: (times.get(r.submission_id, 0.0), r.score, r.submission_id)  # noqa: E731
+    out: dict[str, SubmissionResult] = {}
+    for r in results:
+        for s in r.students:
+            k = student_key(s)
+            if k not in out or rank(r) > rank(out[k]):
+                out[k] = r
+    return out
+
+
+def superseded(results: Iterable[SubmissionResult], times: Mapping[str, float]) -> dict[str, str]:
+    """``{submission_id: the later submission that replaces it}`` for submissions sharing a student."""
+    results = list(results)
+    chosen = latest(results, times)
+    out = {}
+    for r in results:
+        newer = sorted({chosen[student_key(s)].submission_id for s in r.students} - {r.submission_id})
+        if newer:
+            out[r.submission_id] = newer[0]
+    return out
+
+
+def canvas_csv(results: Iterable[SubmissionResult], *, assignment: str, assignment_id: str,
+               times: Mapping[str, float] | None = None) -> str:
+    """The CSV text: one row per student, from their latest submission (:func:`latest`).
+    A submission without readable students still gets a row, named so an instructor sees why."""
+    results = sorted(results, key=lambda r: r.submission_id)
+    chosen = latest(results, times or {})
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow((*HEADER, csv_text(f"{assignment} ({assignment_id})")))
-    for r in sorted(results, key=lambda r: r.submission_id):
+    for r in results:
         if not r.students:
-            w.writerow((f"(no student listed in submission {csv_text(r.submission_id)})", "", "", "", "", score_text(r.score)))
+            what = "unreadable submission" if not r.valid else "submission"
+            w.writerow((f"({what} {csv_text(r.submission_id)}: no student listed)", "", "", "", "", score_text(r.score)))
         for s in r.students:
-            w.writerow((*(csv_text(v) for v in (s.name, s.canvas_id, s.sis_user_id, s.login_id, s.section)),
-                        score_text(r.score)))
+            if chosen[student_key(s)] is r:
+                w.writerow((*(csv_text(v) for v in (s.name, s.canvas_id, s.sis_user_id, s.login_id, s.section)),
+                            score_text(r.score)))
     return buf.getvalue()

@@ -24,7 +24,7 @@ def _cell(text: str) -> str:
 def feedback_md(r: SubmissionResult, *, title: str = "") -> str:
     """The Markdown text for one submission."""
     names = ", ".join(s.name for s in r.students) or "(no students listed)"
-    lines = [f"# {title or 'Feedback'}: {r.submission_id}", "", f"Students: {_cell(names)}", "",
+    lines = [f"# {_md(title or 'Feedback')} — {_md(r.submission_id)}", "", f"Students: {_cell(names)}", "",
              f"**Score: {score_text(r.score)} / {score_text(r.max_score)}**", ""]
     if not r.valid:
         lines += [f"> **This submission could not be graded:** {_cell(r.error or 'unknown error')}",

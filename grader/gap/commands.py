@@ -5,16 +5,17 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 from grader.errors import DiagnosisError
-from grader.gap.candidates import physical_effects
+from grader.outpaths import output_folder
 
 
 def _effects(text: str | None, known: tuple[str, ...] | None = None) -> list[str] | None:
     """Comma-separated effect names, each one of ``known`` (default: the candidate effects)."""
     if text is None:
         return None
+    from grader.gap.candidates import physical_effects
+
     names = [n.strip() for n in text.split(",") if n.strip()]
     known = known or physical_effects()
     bad = [n for n in names if n not in known]
@@ -30,8 +31,9 @@ def _diagnose(args: argparse.Namespace) -> int:
     from grader.gap.summary import summary
 
     t0 = time.perf_counter()
+    out = output_folder(args.out)
     analysis = analyse(args.dataset, key=args.key, effects=_effects(args.effects), second=args.second)
-    paths = write_outputs(analysis, Path(args.out))
+    paths = write_outputs(analysis, out)
     print(summary(analysis.diagnosis))
     print(f"\nwrote {paths[0]}, {paths[1]} and {len(paths) - 2} plots in {time.perf_counter() - t0:.1f} s")
     return 0
@@ -43,7 +45,7 @@ def _bench(args: argparse.Namespace) -> int:
     if args.n < 1:
         raise DiagnosisError(f"--n must be at least 1, got {args.n}")
     cfg = BenchConfig(n=args.n, seed=args.seed, effects=tuple(_effects(args.effects, TRUTHS) or ()) or None,
-                      sweep=args.sweep, workdir=Path(args.workdir) if args.workdir else None)
+                      sweep=args.sweep, workdir=output_folder(args.workdir) if args.workdir else None)
     print(run_benchmark(cfg).text())
     return 0
 

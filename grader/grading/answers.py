@@ -62,8 +62,8 @@ def read_quantity(raw: Any, *, unit: str, what: str) -> pint.Quantity:
         return parse_quantity(raw, where=what, default_unit=unit)
     except UnitError as exc:
         raise AnswerError(str(exc)) from None
-    except Exception as exc:  # noqa: BLE001 - pint's parser leaks AssertionError, TokenError on odd input
-        raise AnswerError(f"{what}: cannot parse {str(raw)[:40]!r} as a quantity ({type(exc).__name__})") from None
+    except Exception:  # noqa: BLE001 - pint's parser leaks AssertionError, TokenError on odd input
+        raise AnswerError(f"{what}: cannot read {str(raw)[:40]!r} as a number with a unit") from None
 
 
 def _type_name(raw: Any) -> str:
@@ -93,12 +93,6 @@ def _conversion(units: pint.Unit, unit: str) -> float | None:
         return float(q.to(target).magnitude)
     except pint.errors.DimensionalityError:
         return None
-
-
-def dimension_text(unit: str | pint.Unit) -> str:
-    """``[length]³/([current]·[time])``-style text of a unit's dimension."""
-    dims = ureg.Unit(unit).dimensionality if isinstance(unit, str) else unit.dimensionality
-    return f"{dims}" if dims else "dimensionless"
 
 
 # ---------------------------------------------------------------- poles
@@ -179,8 +173,8 @@ def read_poles(raw: Any, *, limits: Limits = DEFAULT_LIMITS) -> list[tuple[Gains
     if len(entries) > limits.max_gains:
         raise AnswerError(f"closed_loop_poles: more than {limits.max_gains} gains")
     out = []
-    for gains, poles in entries:
-        where = f"closed_loop_poles at Kp = {gains.Kp:g}"
+    for n, (gains, poles) in enumerate(entries, start=1):
+        where = f"closed_loop_poles: entry {n} (Kp = {gains.Kp:g}, Ki = {gains.Ki:g}, Kd = {gains.Kd:g})"
         if not isinstance(poles, list) or not poles:
             raise AnswerError(f"{where}: expected a list of poles")
         if len(poles) > limits.max_poles:

@@ -8,6 +8,7 @@ that order), else by a unit slip, else it is incorrect.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import lru_cache
@@ -16,7 +17,7 @@ from typing import Any
 from grader.errors import ExpressionError
 from grader.grading import ecf, tf
 from grader.grading import feedback as fb
-from grader.grading.answers import AnswerError, Gains, dimension_text, is_blank, read_quantity, to_unit
+from grader.grading.answers import AnswerError, Gains, is_blank, read_quantity, to_unit
 from grader.grading.context import KeyContext
 from grader.grading.designs import RigVerdict
 from grader.grading.expressions import parse_expression, to_ratfunc
@@ -27,7 +28,7 @@ from grader.grading.results import READ_STATUSES, ItemResult
 from grader.grading.rubric import Rubric, RubricItem
 from grader.grading.units_diagnosis import diagnose_slip
 from grader.model.params import Feedback
-from grader.units import Q_, parse_quantity
+from grader.units import Q_, dimension_words, parse_quantity, pretty_unit
 
 
 @dataclass(frozen=True)
@@ -78,13 +79,14 @@ def _absolute(a: str | float | None, key_unit: str, unit: str) -> float:
 
 
 def _given(raw: Any, unit: str) -> str:
-    """The answer as the student wrote it (a bare number with the unit it was taken in)."""
+    """The answer as the student wrote it, its unit in the course's style (a bare number: the unit it was taken in)."""
     text = raw.strip() if isinstance(raw, str) else f"{raw:g}"
-    try:
-        float(text)
-    except ValueError:
+    m = re.fullmatch(r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*)", text)
+    if m is None:
         return text
-    return text if unit == "dimensionless" else f"{text} (taken in {fb.pretty_unit(unit)})"
+    if m.group(2):
+        return f"{m.group(1)} {pretty_unit(m.group(2))}"
+    return text if unit == "dimensionless" else f"{text} (taken in {pretty_unit(unit)})"
 
 
 def _ecf_candidate(name: str, item: RubricItem, env: CheckEnv, done: Mapping[str, ItemResult],
@@ -99,7 +101,7 @@ def _ecf_candidate(name: str, item: RubricItem, env: CheckEnv, done: Mapping[str
         return None
     kname = env.rubric.key_name(name)
     unit = item.unit or env.kc.unit(kname)
-    expected = env.kc.value(kname) if env.reveal else None
+    expected = env.kc.value(kname) if env.reveal and env.kc.key.quantities[kname].reachable else None
     return result(name, item, "correct_ecf", item.ecf_credit, fb.ecf(name, given, wrong, expected, unit),
                   mistake="ecf", detail={"recomputed": target, "from": wrong}, value=v)
 
@@ -119,13 +121,18 @@ def check_quantity(name: str, raw: Any, env: CheckEnv, done: Mapping[str, ItemRe
     given = _given(raw, unit)
     v = to_unit(q, key_unit)
     if v is None:
-        text = fb.wrong_dimension(name, given, dimension_text(q.units), unit, dimension_text(unit))
+        text = fb.wrong_dimension(name, given, dimension_words(q.units), unit, dimension_words(unit))
         return result(name, item, "wrong_dimension", 0.0, text, detail={"unit_given": str(q.units), "unit_expected": unit})
-    expected = float(entry.value)
     absolute = _absolute(item.tolerance.absolute, key_unit, unit)
     accept = lambda x, e: item.tolerance.accepts(x, e, absolute=absolute)  # noqa: E731
+    if not entry.reachable:  # a number for a value the rig does not have
+        text = fb.number_not_reachable(name, given, entry.reason if env.reveal else None)
+        fallback = result(name, item, "incorrect", 0.0, text, detail={"value": v, "unit": key_unit,
+                                                                       "key_status": entry.status}, value=v)
+        return _ecf_candidate(name, item, env, done, accept, v, given) or fallback
+    expected = float(entry.value)
     detail = {"value": v, "unit": key_unit, "expected": expected, "tolerance": item.tolerance.describe(unit)}
-    alts = [float(env.kc.value(a)) for a in item.also_accept]
+    alts = [float(env.kc.value(a)) for a in item.also_accept if env.kc.key.quantities[a].reachable]
     if item.tolerance.accepts(v, expected, absolute=absolute, interval=entry.interval) or any(accept(v, a) for a in alts):
         return result(name, item, "correct", 1.0, fb.correct(name, given), detail=detail, value=v)
     shown_expected = to_unit(Q_(expected, key_unit), unit)

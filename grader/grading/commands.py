@@ -6,32 +6,43 @@ import argparse
 import sys
 from collections import Counter
 from pathlib import Path
-
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-from rich.table import Table
+from typing import TYPE_CHECKING
 
 from grader.errors import GraderError, SubmissionError
-from grader.grading.context import KeyStore
-from grader.grading.grade import GradeOptions, grade_submission, invalid_submission
-from grader.grading.results import SubmissionResult
-from grader.grading.rubric import Rubric, load_rubric
-from grader.grading.submissions import SUFFIXES, fallback_id, read_submission
-from grader.stations import repo_root
+from grader.outpaths import output_file, output_folder
+
+if TYPE_CHECKING:  # heavy modules are imported inside the handlers (fast start-up)
+    from rich.table import Table
+
+    from grader.grading.context import KeyStore
+    from grader.grading.grade import GradeOptions
+    from grader.grading.results import SubmissionResult
+    from grader.grading.rubric import Rubric
 
 DEFAULT_RUBRIC = "rubrics/hydraulic_positioner.yaml"
 
 
+def _rubric_path(args: argparse.Namespace) -> Path:
+    from grader.stations import repo_root
+
+    return Path(args.rubric) if args.rubric else repo_root() / DEFAULT_RUBRIC
+
+
 def _rubric(args: argparse.Namespace) -> Rubric:
-    path = Path(args.rubric) if args.rubric else repo_root() / DEFAULT_RUBRIC
-    return load_rubric(path)
+    from grader.grading.rubric import load_rubric
+
+    return load_rubric(_rubric_path(args))
 
 
 def _options(args: argparse.Namespace, rubric: Rubric, *, reveal: bool) -> GradeOptions:
+    from grader.grading.grade import GradeOptions
+
     return GradeOptions(rubric=rubric, convention=args.feedback_convention or rubric.feedback_convention, reveal=reveal)
 
 
 def _store(args: argparse.Namespace) -> KeyStore:
+    from grader.grading.context import KeyStore
+
     return KeyStore(datasets_dir=Path(args.datasets) if args.datasets else None,
                     keys_dir=Path(args.keys) if args.keys else None,
                     cache_dir=Path(args.key_cache) if args.key_cache else None)
@@ -39,6 +50,8 @@ def _store(args: argparse.Namespace) -> KeyStore:
 
 def summary_table(results: list[SubmissionResult], rubric: Rubric) -> Table:
     """Per item: mean points, how many were correct, and the most common mistake."""
+    from rich.table import Table
+
     table = Table(title=f"{len(results)} submissions, mean score "
                         f"{sum(r.score for r in results) / max(len(results), 1):.1f} / {rubric.max_score:g}")
     for col in ("item", "mean", "max", "correct", "most common mistake"):
@@ -54,9 +67,14 @@ def summary_table(results: list[SubmissionResult], rubric: Rubric) -> Table:
 
 
 def _grade(args: argparse.Namespace) -> int:
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
     from grader.exports.bundle import write_outputs
     from grader.grading.pipeline import expand_inputs, grade_batch, read_all
+    from grader.grading.submissions import SUFFIXES
 
+    out = output_folder(args.out)
     rubric = _rubric(args)
     opts = _options(args, rubric, reveal=True)
     paths = expand_inputs(args.submissions)
@@ -72,50 +90,69 @@ def _grade(args: argparse.Namespace) -> int:
         for r in grade_batch(subs, opts, _store(args), workers=args.workers, on_stage=stage):
             results.append(r)
             progress.advance(task)
-    write_outputs(results, Path(args.out), rubric, assignment=args.assignment or rubric.assignment.name,
+    write_outputs(results, out, rubric, assignment=args.assignment or rubric.assignment.name,
                   assignment_id=args.assignment_id or rubric.assignment.id)
     Console().print(summary_table(results, rubric))
-    invalid = [r for r in results if not r.valid]
     print(f"wrote {len(results)} results to {args.out}/ (grades.csv, report.json, gradebook.xlsx, results/, feedback/)")
+    _warn_duplicates(results)
+    invalid = [r for r in results if not r.valid]
     if invalid:
         print(f"{len(invalid)} submission(s) could not be graded:", file=sys.stderr)
         for r in invalid:
-            print(f"  {Path(r.source).name}: {r.error}", file=sys.stderr)
+            name, error = Path(r.source).name, r.error or "unknown error"
+            print(f"  {error if error.startswith(name + ':') else f'{name}: {error}'}", file=sys.stderr)
+        print("  (score 0; without readable students their grades.csv rows read '(unreadable submission ID: "
+              "no student listed)')", file=sys.stderr)
         return 1
     return 0
 
 
+def _warn_duplicates(results: list[SubmissionResult]) -> None:
+    """Say which submissions grades.csv does not use because their students handed in later ones."""
+    from grader.exports.bundle import source_times
+    from grader.exports.canvas import superseded
+
+    gone = superseded(results, source_times(results))
+    if gone:
+        print(f"warning: {len(gone)} submission(s) share students with a later one; grades.csv grades each "
+              "student's latest submission (by file time), report.json names it in 'superseded_by':", file=sys.stderr)
+        for sid, newer in sorted(gone.items()):
+            print(f"  {sid} -> {newer}", file=sys.stderr)
+
+
 def _check(args: argparse.Namespace) -> int:
-    rubric = _rubric(args)
-    opts = _options(args, rubric, reveal=False)
-    path = Path(args.submission)
-    try:
-        sub = read_submission(path, limits=opts.limits)
-    except SubmissionError as exc:
-        print(f"cannot read the submission: {exc}")
-        return 1
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
     from grader.grading.pipeline import resolve_key
     from grader.grading.selfcheck import self_check
+    from grader.grading.submissions import read_submission
 
+    rubric = _rubric(args)
+    opts = _options(args, rubric, reveal=False)
+    sub = read_submission(Path(args.submission), limits=opts.limits)  # an unreadable file: one line, exit 2
     store = _store(args)
     result = self_check(sub, lambda s: resolve_key(s, store), opts)
     console = Console(highlight=False)
-    table = Table(title=f"grader check: {sub.submission_id}", show_lines=True)
+    table = Table(title=escape(f"grader check: {sub.submission_id}"), show_lines=True)
     for col in ("item", "status", "feedback"):
         table.add_column(col, overflow="fold")
     for i in result.items:
-        table.add_row(i.item, i.status, i.feedback)
+        table.add_row(escape(i.item), i.status, escape(i.feedback))
     console.print(table)
     for note in result.notes:
-        console.print(f"note: {note}")
+        console.print(escape(f"note: {note}"))
     return 0
 
 
 def _template(args: argparse.Namespace) -> int:
-    from grader.exports.atomic import workbook_bytes, write_bytes
+    from grader.exports.atomic import workbook_bytes
     from grader.grading.xlsx_io import build_template
+    from grader.outpaths import write_bytes
     from grader.stations import load_station
 
+    output_file(args.output, example="lab4.xlsx")
     rubric = _rubric(args)
     station = load_station(args.station)
     gain_unit = "dimensionless" if station.feedback == "volts" else "V/in"
@@ -126,9 +163,12 @@ def _template(args: argparse.Namespace) -> int:
 
 
 def _gradescope(args: argparse.Namespace) -> int:
-    from grader.exports.atomic import write_text
     from grader.exports.gradescope import results_json
+    from grader.grading.grade import invalid_submission
+    from grader.grading.submissions import SUFFIXES
+    from grader.outpaths import write_text
 
+    output_file(args.results, example="results.json")
     rubric = _rubric(args)
     opts = _options(args, rubric, reveal=args.reveal)
     folder = Path(args.submission_dir)
@@ -145,7 +185,9 @@ def _gradescope(args: argparse.Namespace) -> int:
 
 
 def _grade_single(path: Path, opts: GradeOptions, store: KeyStore, rubric: Rubric) -> SubmissionResult:
+    from grader.grading.grade import grade_submission, invalid_submission
     from grader.grading.pipeline import resolve_key
+    from grader.grading.submissions import fallback_id, read_submission
 
     try:
         sub = read_submission(path, limits=opts.limits)
@@ -155,11 +197,13 @@ def _grade_single(path: Path, opts: GradeOptions, store: KeyStore, rubric: Rubri
 
 
 def _package(args: argparse.Namespace) -> int:
-    from grader.exports.atomic import write_bytes
     from grader.exports.gradescope import package_zip
+    from grader.outpaths import write_bytes
+    from grader.stations import repo_root
 
-    rubric_path = Path(args.rubric) if args.rubric else repo_root() / DEFAULT_RUBRIC
-    rubric = load_rubric(rubric_path)
+    output_file(args.output, example="autograder.zip")
+    rubric_path = _rubric_path(args)
+    rubric = _rubric(args)
     data = package_zip(repo_root(), rubric_path, convention=args.feedback_convention or rubric.feedback_convention)
     out = write_bytes(args.output, data)
     print(f"wrote {out} ({len(data) / 1e6:.1f} MB): upload it as the Gradescope autograder (Ubuntu image)")

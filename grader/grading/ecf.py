@@ -43,6 +43,13 @@ def _matching(which: int) -> Callable[[KeyContext, Mapping[str, float]], float]:
     return compute
 
 
+NAN = float("nan")
+
+
+def _or_nan(value: float | None) -> float:
+    return NAN if value is None else value
+
+
 def student_model(kc: KeyContext, own: Mapping[str, float]) -> RigParams:
     """The key's model with the student's Kq, Kpot, β/Vt and Kce."""
     u = _upstream(kc, own, _MODEL_INPUTS)
@@ -53,12 +60,15 @@ def _prediction(kind: str) -> Callable[[KeyContext, Mapping[str, float]], Any]:
     def compute(kc: KeyContext, own: Mapping[str, float]) -> Any:
         p = student_model(kc, own)
         if kind == "no_overshoot":
-            return zloop.gain_no_overshoot(p)
+            return _or_nan(zloop.gain_no_overshoot(p))
         if kind == "25":
-            return zloop.gain_for_overshoot(p, 0.25)
+            return _or_nan(zloop.gain_for_overshoot(p, 0.25))
         if kind == "ramp":
             inputs = kc.key.quantities["ramp_ess_P"].inputs
-            return ramp_error(p, float(inputs["Kp"]), float(inputs["ramp rate [in/s]"]))
+            if "Kp" not in inputs:
+                return None  # no P ramp run to predict
+            kp = float(inputs["Kp"])
+            return ramp_error(p, kp, float(inputs["ramp rate [in/s]"])) if kp < zloop.critical_gain(p) else NAN
         return [{**run, "poles": [[z.real, z.imag] for z in closed_loop_poles(p, Controller(run["Kp"], run["Ki"], run["Kd"]))]}
                 for run in kc.value("closed_loop_poles")]
     return compute
@@ -78,7 +88,8 @@ RECOMPUTE: dict[str, Recompute] = {
 
 
 def recompute(key_name: str, kc: KeyContext, own: Mapping[str, float]) -> Any:
-    """The value ``key_name`` takes with the student's upstream values ``own`` (key units); None if it cannot."""
+    """The value ``key_name`` takes with the student's upstream values ``own`` (key units): NaN
+    when with them it does not exist (not reachable), None when it cannot be recomputed."""
     spec = RECOMPUTE.get(key_name)
     if spec is None:
         return None

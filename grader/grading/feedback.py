@@ -7,6 +7,7 @@ import re
 
 from grader.grading.rubric import Tolerance
 from grader.grading.units_diagnosis import Slip
+from grader.units import fmt, pretty_unit
 
 NAMES: dict[str, str] = {
     "closed_loop_tf": "closed-loop transfer function", "open_loop_tf": "open-loop transfer function",
@@ -21,19 +22,8 @@ def name(item: str) -> str:
     return NAMES.get(item, item)
 
 
-_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
-
-
-def pretty_unit(unit: str) -> str:
-    """``in**3/s/mA`` -> ``in³/s/mA`` (the unit as the rubric writes it, not reordered)."""
-    if unit == "dimensionless":
-        return ""
-    text = re.sub(r"\*\*\(?(-?\d+)\)?", lambda m: m.group(1).translate(_SUPERSCRIPT), unit.replace("^", "**"))
-    return text.replace("*", "·")
-
-
 def shown(value: float, unit: str) -> str:
-    return f"{value:.4g} {pretty_unit(unit)}".strip()
+    return fmt(value, unit)
 
 
 def missing(item: str) -> str:
@@ -41,11 +31,15 @@ def missing(item: str) -> str:
 
 
 def invalid(item: str, reason: str) -> str:
-    return f"{name(item)}: could not read your answer: {reason}"
+    """The reader's reason without repeating the item's name."""
+    return f"{name(item)}: could not read your answer: {reason.removeprefix(f'{item}: ')}"
 
 
 def wrong_dimension(item: str, given: str, given_dim: str, unit: str, dim: str) -> str:
-    return f"{name(item)} = {given} has dimension {given_dim}, but {name(item)} is in {pretty_unit(unit) or 'no unit'} ({dim})."
+    """``Kpot = 0.85 V/s: V/s is a voltage per time; Kpot needs a voltage per length (V/in).``"""
+    written = re.sub(r"^\s*[-+]?[\d.]+([eE][-+]?\d+)?\s*", "", given) or "a bare number"
+    return (f"{name(item)} = {given}: {written} is {given_dim}; {name(item)} needs {dim} "
+            f"({pretty_unit(unit) or 'no unit'}).")
 
 
 def correct(item: str, given: str) -> str:
@@ -74,3 +68,18 @@ def unit_slip(item: str, slip: Slip, expected: float | None, unit: str) -> str:
 def known_mistake(item: str, given: str, text: str, expected: float | None, unit: str) -> str:
     tail = f" (Expected {shown(expected, unit)}.)" if expected is not None else ""
     return f"{name(item)} = {given}: {text}{tail}"
+
+
+def number_not_reachable(item: str, given: str, reason: str | None) -> str:
+    """A number for an item the identified rig does not have; ``reason`` (None: key hidden) says why."""
+    if reason is not None:
+        return (f"{name(item)} = {given}: the rig identified from your station's data has no such value "
+                f"({reason}). Answer 'not reachable'.")
+    return (f"{name(item)} = {given} does not match your station's data. Check whether such a value exists "
+            f"for your rig at all; if it does not, answer 'not reachable'.")
+
+
+def reachable_after_all(item: str, expected: float | None, unit: str) -> str:
+    """A not-reachable answer for an item the identified rig does have."""
+    tail = f" (expected {shown(expected, unit)})" if expected is not None else "; compute it"
+    return f"{name(item)}: not reachable is incorrect: your station's data give this value{tail}."

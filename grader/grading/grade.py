@@ -25,6 +25,7 @@ from grader.grading.results import ItemResult, Student, SubmissionResult
 from grader.grading.rubric import Rubric
 from grader.grading.structured import check_design, check_poles
 from grader.grading.submissions import InvalidAnswer, Submission
+from grader.grading.unreachable import check_not_reachable
 from grader.model.params import Feedback
 from grader.units import quantity_to_float, ureg
 
@@ -88,7 +89,7 @@ def _check(name: str, raw: Any, env: CheckEnv, done: Mapping[str, ItemResult]) -
         if kind == "expression":
             return check_expression(name, raw, env)
         if kind == "quantity":
-            return check_quantity(name, raw, env, done)
+            return check_not_reachable(name, raw, env, done) or check_quantity(name, raw, env, done)
         if kind == "poles":
             return check_poles(name, raw, env, done)
         return check_design(name, raw, env)

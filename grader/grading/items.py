@@ -41,3 +41,7 @@ ITEMS: dict[str, ItemSpec] = {s.name: s for s in (
     ItemSpec("pd_design", "design", None, "PD design: Kp, Kd and the step overshoot it gives"),
     ItemSpec("pi_design", "design", None, "PI design: Kp, Ki and the ramp error it leaves"),
 )}
+
+#: predictions a rig may not have (e.g. no gain gives 25 % overshoot): they may be answered
+#: "not reachable" (see :mod:`grader.grading.unreachable`)
+MAY_BE_NOT_REACHABLE = frozenset({"Kp_no_overshoot", "Kp_25_overshoot", "ramp_ess_P"})

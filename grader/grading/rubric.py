@@ -20,7 +20,7 @@ from grader.errors import GraderError, RubricError, validation_message
 from grader.grading.ecf import RECOMPUTE
 from grader.grading.items import ITEMS
 from grader.grading.mistakes import CATALOG
-from grader.units import parse_quantity, parse_unit
+from grader.units import parse_quantity, parse_unit, pretty_unit
 
 _FORBID = ConfigDict(extra="forbid", frozen=True)
 
@@ -61,7 +61,7 @@ class Tolerance(BaseModel):
         if self.relative is not None:
             parts.append(f"±{100 * self.relative:g} %")
         if self.absolute is not None:
-            parts.append(f"±{self.absolute}" + (f" {unit}" if isinstance(self.absolute, (int, float)) and unit else ""))
+            parts.append(f"±{self.absolute}" + (f" {pretty_unit(unit)}" if isinstance(self.absolute, (int, float)) and unit else ""))
         if self.sig_figs is not None:
             parts.append(f"{self.sig_figs} significant figures")
         return " or ".join(parts) or "the key's 95 % interval"

@@ -53,11 +53,19 @@ class SubmissionModel(BaseModel):
     """The top level of a JSON/YAML submission."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
-    submission_id: str = Field(pattern=SAFE_ID.pattern)
+    submission_id: str = Field(max_length=64)
     students: list[StudentModel] = Field(min_length=1, max_length=10)
     station: str = Field(default="default", max_length=64)
     data: str | None = Field(default=None, max_length=255)
     answers: dict[str, Any] = Field(default_factory=dict, max_length=64)
+
+    @field_validator("submission_id")
+    @classmethod
+    def _id(cls, v: str) -> str:
+        if not safe_id(v):
+            raise ValueError(f"{v[:64]!r} must be 1-64 letters, digits, _ . - starting with a letter or digit, "
+                             "e.g. group-07")
+        return v
 
 
 @dataclass(frozen=True)
@@ -146,15 +154,26 @@ def resolve_data_dir(path: Path, data: str) -> Path:
     return target
 
 
-def answer_notes(answers: dict[str, Any]) -> tuple[str, ...]:
-    """Notes on answer names that are not canonical items (they are ignored)."""
+def canonical_answers(answers: dict[str, Any]) -> tuple[dict[str, Any], tuple[str, ...]]:
+    """Answers keyed by canonical item names, and notes on the names changed or ignored.
+
+    A name that differs from an item only in letter case (``kq``) is read as that item unless
+    the item is also given; any other unknown name is ignored, with a "did you mean" hint."""
+    by_lower = {i.lower(): i for i in ITEMS}
+    out: dict[str, Any] = {}
     notes = []
-    for k in answers:
-        if k not in ITEMS:
-            close = difflib.get_close_matches(str(k), list(ITEMS), n=1)
-            hint = f"; did you mean {close[0]!r}?" if close else ""
-            notes.append(f"answer {str(k)[:40]!r} is not an item of this lab and was ignored{hint}")
-    return tuple(notes)
+    for k, v in answers.items():
+        key = str(k)
+        item = key if key in ITEMS else by_lower.get(key.lower())
+        if item is not None and (item == key or item not in answers):
+            out[item] = v
+            if item != key:
+                notes.append(f"answer {key[:40]!r} was read as {item!r} (write item names as {item!r})")
+            continue
+        close = [item] if item else difflib.get_close_matches(key, list(ITEMS), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        notes.append(f"answer {key[:40]!r} is not an item of this lab and was ignored{hint}")
+    return out, tuple(notes)
 
 
 def from_mapping(path: Path, raw: Any) -> Submission:
@@ -167,14 +186,15 @@ def from_mapping(path: Path, raw: Any) -> Submission:
         raise SubmissionError(validation_message(path.name, exc)) from None
     students = tuple(Student(s.name, s.sis_user_id, s.login_id, s.section, s.id) for s in m.students)
     data = resolve_data_dir(path, m.data) if m.data else None
-    return Submission(m.submission_id, path, students, m.station, dict(m.answers), data, answer_notes(m.answers))
+    answers, notes = canonical_answers(m.answers)
+    return Submission(m.submission_id, path, students, m.station, answers, data, notes)
 
 
 def read_submission(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> Submission:
     """Read a JSON, YAML or XLSX submission; raises SubmissionError naming the file and field."""
     path = Path(path)
     if not path.is_file():
-        raise SubmissionError(f"{path}: not a file")
+        raise SubmissionError(f"{path}: " + ("is a folder; give one submission file" if path.is_dir() else "file not found"))
     if path.suffix.lower() not in SUFFIXES:
         raise SubmissionError(f"{path.name}: unknown submission type (use {', '.join(SUFFIXES)})")
     if path.suffix.lower() == ".xlsx":

@@ -20,14 +20,14 @@ from openpyxl import Workbook, load_workbook
 from openpyxl.worksheet.datavalidation import DataValidation
 
 from grader.errors import SubmissionError
-from grader.grading.items import ITEMS
+from grader.grading.items import ITEMS, MAY_BE_NOT_REACHABLE
 from grader.grading.limits import DEFAULT_LIMITS, Limits
 from grader.grading.results import Student
 from grader.grading.submissions import (
     InlineData,
     InvalidAnswer,
     Submission,
-    answer_notes,
+    canonical_answers,
     safe_id,
 )
 
@@ -203,8 +203,9 @@ def read_xlsx(path: Path, *, limits: Limits = DEFAULT_LIMITS) -> Submission:
             answers = _answers(wb, limits)
             if "poles" in wb.sheetnames and answers.get("closed_loop_poles") is None:
                 answers["closed_loop_poles"] = _poles(wb, limits)
+            answers, notes = canonical_answers(answers)
             return Submission(sid, path, _students(wb, path.name, limits), str(info.get("station") or "default")[:64],
-                              answers, _data(wb, path.name, limits), answer_notes(answers))
+                              answers, _data(wb, path.name, limits), notes)
         except SubmissionError as exc:
             msg = str(exc)
             raise SubmissionError(msg if msg.startswith(f"{path.name}:") else f"{path.name}: {msg}") from None
@@ -214,6 +215,9 @@ def read_xlsx(path: Path, *, limits: Limits = DEFAULT_LIMITS) -> Submission:
                                   "save it again from Excel or use 'grader template'") from None
     finally:
         wb.close()
+
+
+NOT_REACHABLE_HINT = "; if your rig has no such value, write 'not reachable' (or 'none', 'n/a')"
 
 
 def _unit_hint(item: str, gain_unit: str) -> str:
@@ -232,7 +236,8 @@ def _answer_rows(items: list[str], gain_unit: str) -> list[tuple[str, str, str, 
         if spec.kind == "design":
             rows += [(f"{item}.{p}", _design_hint(p, gain_unit), spec.description, spec.kind) for p in DESIGN_PARTS[item]]
         elif spec.kind != "poles":
-            rows.append((item, _unit_hint(item, gain_unit), spec.description, spec.kind))
+            tail = NOT_REACHABLE_HINT if item in MAY_BE_NOT_REACHABLE else ""
+            rows.append((item, _unit_hint(item, gain_unit), spec.description + tail, spec.kind))
     return rows
 
 
@@ -240,7 +245,8 @@ def _answers_sheet(wb: Workbook, items: list[str], gain_unit: str) -> None:
     ans = wb.create_sheet("answers")
     ans.append(("item", "value", "unit", "expected unit", "description"))
     numbers = DataValidation(type="decimal", operator="between", formula1="-1E+300", formula2="1E+300",
-                             errorStyle="warning", error="Type a number; put its unit in column C.", showErrorMessage=True)
+                             errorStyle="warning", error="Type a number; put its unit in column C. (A prediction your "
+                             "rig does not have: type 'not reachable'.)", showErrorMessage=True)
     ans.add_data_validation(numbers)
     for label, unit, description, kind in _answer_rows(items, gain_unit):
         ans.append((label, None, None, unit, description))

@@ -6,20 +6,24 @@ reduction), :mod:`linear` (python-control TFs, Routh critical gain, root locus),
 and :mod:`rig` (the nonlinear rig simulator).
 """
 
-from grader.model.effects import EffectSet
-from grader.model.linear import (
-    char_poly,
-    closed_loop_poles,
-    closed_loop_tf,
-    critical_gain,
-    open_loop_tf,
-    plant_tf,
-    ramp_error,
-    root_locus,
-)
-from grader.model.params import Controller, RigParams, mass_from_weight, piston_area
-from grader.model.rig import simulate_rig, simulate_rig_batch
-from grader.model.sampled import discrete_critical_gain, simulate
+from importlib import import_module
+from typing import Any
+
+#: Public name -> defining module, imported on first use (so ``grader.model.params`` stays light).
+_EXPORTS = {
+    "EffectSet": "effects", "char_poly": "linear", "closed_loop_poles": "linear", "closed_loop_tf": "linear",
+    "critical_gain": "linear", "open_loop_tf": "linear", "plant_tf": "linear", "ramp_error": "linear",
+    "root_locus": "linear", "Controller": "params", "RigParams": "params", "mass_from_weight": "params",
+    "piston_area": "params", "simulate_rig": "rig", "simulate_rig_batch": "rig",
+    "discrete_critical_gain": "sampled", "simulate": "sampled",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(import_module(f"{__name__}.{_EXPORTS[name]}"), name)
+
 
 __all__ = [
     "Controller", "EffectSet", "RigParams", "char_poly", "closed_loop_poles", "closed_loop_tf", "critical_gain",

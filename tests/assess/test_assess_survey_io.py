@@ -117,7 +117,7 @@ def test_xlsx_error_names_row_and_column(tmp_path: Path) -> None:
     workbook.active.cell(row=20, column=3, value=9)
     workbook.save(tmp_path / "responses.xlsx")
     message = _error(tmp_path / "responses.xlsx")
-    assert message.startswith("responses.xlsx, row 20, column C") and '"9" is outside the scale' in message
+    assert message.startswith(f"{tmp_path / 'responses.xlsx'}, row 20, column C") and '"9" is outside the scale' in message
 
 
 def test_bad_did_lab_flag(tmp_path: Path) -> None:

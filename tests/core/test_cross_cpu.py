@@ -1,11 +1,14 @@
-"""Cross-CPU determinism: ``grader key`` writes the same bytes whatever BLAS kernels run.
+"""Cross-CPU determinism: ``grader key`` and ``grader grade`` write the same bytes whatever
+BLAS kernels run.
 
 OpenBLAS picks its kernels by CPU; ``OPENBLAS_CORETYPE`` forces the kernels of an older
-or newer CPU, so one machine can stand in for three.
+or newer CPU, so one machine can stand in for three. One subprocess per core type runs both
+verbs (the imports dominate their time).
 """
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -14,18 +17,45 @@ from pathlib import Path
 from grader.stations import reference_dir
 
 CORE_TYPES = ("Prescott", "Nehalem", "Haswell")
+FIXTURES = reference_dir().parent / "submissions_fixtures" / "grading"
+#: fixtures whose items exercise ECF, known mistakes and not-reachable answers (designs left out: no BLAS there)
+SUBMISSIONS = ("ecf_not_reachable.json", "mistake_kpot_predictions.json")
+SCRIPT = """
+import sys
+from grader.cli import main
+out = sys.argv[1]
+assert main(["key", sys.argv[2], "-o", out + "/key.json"]) == 0
+assert main(["grade", "--workers", "1", "--no-progress", "-o", out + "/grades", *sys.argv[3:]]) == 0
+"""
 
 
-def _key_bytes(core: str, out: Path) -> bytes:
+def _submissions(folder: Path) -> list[str]:
+    paths = []
+    for name in SUBMISSIONS:
+        data = json.loads((FIXTURES / name).read_text())
+        data["answers"] = {k: v for k, v in data["answers"].items() if not k.endswith("_design")}
+        (folder / name).write_text(json.dumps(data))
+        paths.append(str(folder / name))
+    return paths
+
+
+def _outputs(core: str, out: Path, submissions: list[str]) -> dict[str, bytes]:
+    out.mkdir()
     env = {**os.environ, "OPENBLAS_CORETYPE": core}
-    code = "from grader.cli import main; import sys; sys.exit(main(sys.argv[1:]))"
-    subprocess.run([sys.executable, "-c", code, "key", str(reference_dir() / "datasets" / "default"), "-o", str(out)],
+    dataset = str(reference_dir() / "datasets" / "default")
+    subprocess.run([sys.executable, "-c", SCRIPT, str(out), dataset, *submissions],
                    env=env, check=True, capture_output=True, timeout=300)
-    return out.read_bytes()
+    return {p.relative_to(out).as_posix(): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
 
 
-def test_key_bytes_are_the_same_under_every_blas_core_type(tmp_path: Path) -> None:
-    written = {core: _key_bytes(core, tmp_path / f"{core}.json") for core in CORE_TYPES}
+def test_key_and_grade_bytes_are_the_same_under_every_blas_core_type(tmp_path: Path) -> None:
+    submissions = _submissions(tmp_path)
+    written = {core: _outputs(core, tmp_path / core, submissions) for core in CORE_TYPES}
     checked_in = (reference_dir() / "keys" / "default.json").read_bytes()
-    for core, data in written.items():
-        assert data == checked_in, f"OPENBLAS_CORETYPE={core} wrote a key different from the checked-in one"
+    first = written[CORE_TYPES[0]]
+    assert {"key.json", "grades/report.json", "grades/grades.csv"} <= set(first)
+    for core, files in written.items():
+        assert files["key.json"] == checked_in, f"OPENBLAS_CORETYPE={core} wrote a key different from the checked-in one"
+        assert files.keys() == first.keys()
+        for name, data in files.items():
+            assert data == first[name], f"OPENBLAS_CORETYPE={core} wrote a different {name}"

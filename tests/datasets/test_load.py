@@ -74,7 +74,7 @@ BAD_CASES = [
     ("garbage manifest", lambda d: (d / "manifest.json").write_text("{not json"), ["manifest.json", "not valid JSON"]),
     ("manifest list", lambda d: (d / "manifest.json").write_text("[1, 2]"), ["manifest.json", "mapping"]),
     ("negative weight", lambda d: _edit_manifest(d, given={"weight": "-29 lbf"}), ["manifest.json", "mass must be positive"]),
-    ("weight in psi", lambda d: _edit_manifest(d, given={"weight": "29 psi"}), ["given.weight", "dimension"]),
+    ("weight in psi", lambda d: _edit_manifest(d, given={"weight": "29 psi"}), ["given.weight", "psi is a pressure; expected a force"]),
     ("unknown field", lambda d: _edit_manifest(d, colour="red"), ["manifest.json", "colour"]),
     ("unknown run kind", lambda d: _edit_manifest(d, runs=[{"name": "a", "file": "step_kp10.csv", "kind": "sine",
                                                            "controller": {"Kp": 1}}]), ["runs.0.kind"]),

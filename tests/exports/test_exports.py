@@ -12,9 +12,10 @@ import pytest
 from openpyxl import load_workbook
 
 from grader.cli import main
-from grader.exports.atomic import workbook_bytes, write_text, zip_bytes
+from grader.exports.atomic import workbook_bytes, zip_bytes
+from grader.outpaths import write_text
 from grader.exports.bundle import write_outputs
-from grader.exports.canvas import canvas_csv
+from grader.exports.canvas import canvas_csv, score_text, superseded
 from grader.exports.feedback_md import feedback_md
 from grader.exports.gradebook_xlsx import gradebook, item_statistics
 from grader.exports.gradescope import package_zip, results_json
@@ -35,8 +36,22 @@ BAD = SubmissionResult("broken", "broken.json", (), tuple(ItemResult(i.item, "in
 def test_canvas_csv() -> None:
     rows = list(csv.reader(io.StringIO(canvas_csv([GOOD, BAD], assignment="Lab 4", assignment_id="123"))))
     assert rows[0] == ["Student", "ID", "SIS User ID", "SIS Login ID", "Section", "Lab 4 (123)"]
-    assert rows[1] == ["(no student listed in submission broken)", "", "", "", "", "0"]
+    assert rows[1] == ["(unreadable submission broken: no student listed)", "", "", "", "", "0"]
     assert rows[2] == ["Ada Lovelace", "55", "1001", "ada", "L01", "7"] and rows[3][0] == "Alan Turing"
+
+
+def test_latest_submission_by_file_time_then_score() -> None:
+    twin = SubmissionResult("g-00", "g0.json", GOOD.students, ITEMS[1:])  # same students, lower score
+    assert superseded([GOOD, twin], {"g-01": 1.0, "g-00": 2.0}) == {"g-01": "g-00"}
+    assert superseded([GOOD, twin], {"g-01": 2.0, "g-00": 1.0}) == {"g-00": "g-01"}
+    assert superseded([GOOD, twin], {}) == {"g-00": "g-01"}  # same time: the higher score
+    rows = list(csv.reader(io.StringIO(canvas_csv([GOOD, twin], assignment="L", assignment_id="1",
+                                                  times={"g-01": 1.0, "g-00": 2.0}))))[1:]
+    assert [r[0] for r in rows] == ["Ada Lovelace", "Alan Turing"] and {r[5] for r in rows} == {score_text(twin.score)}
+    other = SubmissionResult("g-02", "g2.json", (Student("ALAN TURING"),), ITEMS)  # a name only: another key
+    assert superseded([GOOD, other], {}) == {}
+    report = json.loads(report_json([GOOD, twin], {"g-01": "g-00"}))
+    assert {s["submission_id"]: s["superseded_by"] for s in report["submissions"]} == {"g-00": None, "g-01": "g-00"}
 
 
 def test_gradescope_results_schema() -> None:
@@ -53,14 +68,14 @@ def test_report_json_schema_and_clean_numbers() -> None:
     data = json.loads(report_json([GOOD, BAD]))
     assert [s["submission_id"] for s in data["submissions"]] == ["broken", "g-01"]
     sub = data["submissions"][1]
-    assert set(sub) == {"submission_id", "score", "max_score", "valid", "error", "items"}
+    assert set(sub) == {"submission_id", "score", "max_score", "valid", "error", "superseded_by", "items"}
     assert set(sub["items"][0]) == {"item", "status", "points", "max_points", "mistake", "detail", "feedback"}
     assert sub["items"][0]["detail"] == {"factor": 1728.0, "unit_used": "ft³", "value": None}
 
 
 def test_feedback_markdown_escapes_and_explains_invalid() -> None:
     md = feedback_md(GOOD, title="Lab 4")
-    assert md.startswith("# Lab 4: g-01") and "**Score: 7 / 10**" in md and "\\| pipe" in md
+    assert md.startswith("# Lab 4 — g-01\n") and "**Score: 7 / 10**" in md and "\\| pipe" in md
     assert "unit\\_slip" not in md and "| Kq | unit mismatch | 3 / 6 |" in md
     assert "could not be graded:** not valid JSON" in feedback_md(BAD)
 

@@ -43,6 +43,8 @@ def test_prelab_needs_no_lab_data(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert out.count("correct") >= 3 and "not checked without lab data: Kpot" in out.replace("\n", " ")
 
 
-def test_check_reports_an_unreadable_file(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["check", str(FIXTURES / "garbage.json")]) == 1
-    assert "not valid JSON" in capsys.readouterr().out
+@pytest.mark.parametrize("name, words", [("garbage.json", "not valid JSON"), ("no_such_file.json", "not found")])
+def test_check_reports_an_unreadable_file(capsys: pytest.CaptureFixture[str], name: str, words: str) -> None:
+    assert main(["check", str(FIXTURES / name)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("grader check: error: ") and words in err and "\n" not in err

@@ -1,0 +1,56 @@
+"""Messages a student or an instructor reads: plain sentences, no jargon, nothing eaten by rich."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from grader.cli import main
+
+FIXTURES = Path(__file__).resolve().parents[2] / "submissions_fixtures" / "grading"
+
+
+def _check(tmp_path: Path, capsys: pytest.CaptureFixture[str], **answers: object) -> str:
+    data = json.loads((FIXTURES / "correct.json").read_text())
+    data["answers"].update(answers)
+    for name in [k for k in answers if answers[k] is None]:
+        del data["answers"][name]
+    (tmp_path / "s.json").write_text(json.dumps(data))
+    assert main(["check", str(tmp_path / "s.json")]) == 0
+    return " ".join(capsys.readouterr().out.replace("│", " ").split())  # the table's cells as one text
+
+
+@pytest.mark.parametrize("answers, expected", [
+    ({"Kpot": "0.85 V/s"}, "Kpot = 0.85 V/s: V/s is a voltage per time; Kpot needs a voltage per length (V/in)."),
+    ({"Kq": "0.0385 in3/s/mA"},
+     "Kq: could not read your answer: cannot read '0.0385 in3/s/mA' as a number with a unit; did you mean in^3/s/mA?"),
+    ({"Kce": "0.0007475 in^3/s/psii"}, "did you mean in^3/s/psi?"),
+    ({"Kq": None, "kq": "0.03851 in^3/s/mA"}, "Kq = 0.03851 in³/s/mA: correct."),
+    ({"Kq": None, "kq": "0.03851 in^3/s/mA"}, "note: answer 'kq' was read as 'Kq'"),
+    ({"closed_loop_poles": [{"Kp": 10, "poles": ["-1"]}, {"Kp": 10, "Ki": 5, "poles": ["x"]}]},
+     "entry 2 (Kp = 10, Ki = 5, Kd = 0), pole 1: cannot read 'x' as a pole"),
+])
+def test_check_feedback_is_plain(answers: dict, expected: str, tmp_path: Path,
+                                 capsys: pytest.CaptureFixture[str]) -> None:
+    out = _check(tmp_path, capsys, **answers)
+    assert expected in out
+    assert not re.search(r"\w+Error\b|\[(mass|length|time|current)\]", out)
+    assert "answer: Kq:" not in out and "answer: Kce:" not in out  # the item's name is not repeated
+
+
+@pytest.mark.parametrize("doc, expected", [
+    ({"submission_id": "a", "students": "bob", "answers": {}}, "s.json: field students should be a list, e.g. [a, b], not text"),
+    ({"submission_id": "a b!", "students": [{"name": "x"}]},
+     "s.json: field submission_id: 'a b!' must be 1-64 letters, digits, _ . - starting with a letter or digit"),
+    ({"students": [{"name": "x"}], "answer": {}}, "s.json: field submission_id is required but missing "
+                                                  "(and 1 more field with problems)"),
+])
+def test_file_errors_are_plain(doc: dict, expected: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "s.json").write_text(json.dumps(doc))
+    assert main(["check", str(tmp_path / "s.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"grader check: error: {expected}") and err.count("\n") == 1
+    assert "Input should" not in err and "pattern" not in err and "(+" not in err

@@ -1,0 +1,112 @@
+"""Not-reachable items: the accepted words, the verdicts, error carried forward, key-safe feedback.
+
+The key context is the default station's with ``Kp_25_overshoot`` marked not reachable, so
+every verdict path runs without simulating a second rig (tests/identify/test_not_reachable.py
+builds a rig that really has no 25 % gain).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from grader.grading.context import KeyContext
+from grader.grading.ecf import student_model
+from grader.grading.grade import GradeOptions, grade_submission
+from grader.grading.submissions import Submission
+from grader.grading.unreachable import NOT_REACHABLE_WORDS, says_not_reachable
+from grader.keys import KeyEntry
+from grader.model import zloop
+
+REASON = "the identified loop peaks at 21 % overshoot below its critical gain 57.3, so no P gain gives 25 % overshoot"
+
+
+@pytest.fixture(scope="module")
+def kc_nr(kc: KeyContext) -> KeyContext:
+    """The default key with Kp_25_overshoot not reachable."""
+    old = kc.key.quantities["Kp_25_overshoot"]
+    entry = KeyEntry(value=None, unit=old.unit, interval=None, method=old.method, inputs=old.inputs,
+                     status="not_reachable", reason=REASON)
+    key = kc.key.model_copy(update={"quantities": {**kc.key.quantities, "Kp_25_overshoot": entry}})
+    return KeyContext(key=key, dataset=kc.dataset, source="station")
+
+
+def _grade(kc: KeyContext, opts: GradeOptions, answers: dict[str, Any], *, reveal: bool = True) -> dict[str, Any]:
+    sub = Submission("s", Path("s.json"), (), "default", answers)
+    res = grade_submission(sub, kc, GradeOptions(rubric=opts.rubric, convention="volts", reveal=reveal))
+    return {r.item: r for r in res.items}
+
+
+@pytest.mark.parametrize("text", ["not reachable", "Not Reachable", "NOT_REACHABLE", "not-reachable", " none ",
+                                  "None", "N/A", "n/a", "na", "unreachable"])
+def test_accepted_words(text: str) -> None:
+    assert says_not_reachable(text)
+
+
+@pytest.mark.parametrize("raw", ["0", "49.7", "not", "reachable", "no", "nan", "null", "", "none of them", 0, None, ["none"]])
+def test_other_answers_are_not_the_words(raw: Any) -> None:
+    assert not says_not_reachable(raw)
+
+
+@given(st.text(max_size=30))
+def test_only_the_documented_words_after_normalisation(text: str) -> None:
+    normal = " ".join(text.replace("_", " ").replace("-", " ").lower().split())
+    assert says_not_reachable(text) == (normal in NOT_REACHABLE_WORDS)
+
+
+def _kce_scaled(kc: KeyContext, factor: float) -> tuple[str, float | None]:
+    kce = factor * kc.value("Kce")
+    return f"{kce:.6g} in^3/s/psi", zloop.gain_for_overshoot(student_model(kc, {"Kce": kce}), 0.25)
+
+
+# (case, key has Kp_25?, answers, expected status of Kp_25_overshoot)
+CASES = [
+    ("word for a not-reachable item", False, {"Kp_25_overshoot": "not reachable"}, "correct"),
+    ("other word, other case", False, {"Kp_25_overshoot": "N/A"}, "correct"),
+    ("number for a not-reachable item", False, {"Kp_25_overshoot": "49.7"}, "incorrect"),
+    ("word for a reachable item", True, {"Kp_25_overshoot": "none"}, "incorrect"),
+    ("blank stays missing", False, {"Kp_25_overshoot": ""}, "missing"),
+]
+
+
+@pytest.mark.parametrize(("case", "reachable", "answers", "status"), CASES, ids=[c[0] for c in CASES])
+def test_verdicts(kc: KeyContext, kc_nr: KeyContext, opts: GradeOptions, case: str, reachable: bool,
+                  answers: dict[str, Any], status: str) -> None:
+    r = _grade(kc if reachable else kc_nr, opts, answers)["Kp_25_overshoot"]
+    assert r.status == status, r.feedback
+    assert r.points == (r.max_points if status == "correct" else 0.0)
+
+
+def test_not_reachable_follows_from_the_students_own_light_damping(kc: KeyContext, opts: GradeOptions) -> None:
+    kce, gain = _kce_scaled(kc, 0.4)
+    assert gain is None  # with this Kce the student's model has no 25 % gain
+    r = _grade(kc, opts, {"Kce": kce, "Kp_25_overshoot": "not reachable"})
+    assert r["Kce"].status == "incorrect"
+    assert r["Kp_25_overshoot"].status == "correct_ecf" and r["Kp_25_overshoot"].mistake == "ecf"
+
+
+def test_a_number_from_the_students_own_model_earns_ecf_where_the_key_has_none(kc: KeyContext, kc_nr: KeyContext,
+                                                                                  opts: GradeOptions) -> None:
+    kce, gain = _kce_scaled(kc, 1.3)
+    assert gain is not None
+    r = _grade(kc_nr, opts, {"Kce": kce, "Kp_25_overshoot": f"{gain:.4g}"})
+    assert r["Kp_25_overshoot"].status == "correct_ecf"
+
+
+@pytest.mark.parametrize("reveal", [True, False])
+def test_feedback_on_a_number_explains_and_reveals_only_when_allowed(kc_nr: KeyContext, opts: GradeOptions,
+                                                                     reveal: bool) -> None:
+    text = _grade(kc_nr, opts, {"Kp_25_overshoot": "49.7"}, reveal=reveal)["Kp_25_overshoot"].feedback
+    assert "not reachable" in text
+    assert ("57.3" in text) == reveal and ("21 %" in text) == reveal
+
+
+@pytest.mark.parametrize("reveal", [True, False])
+def test_feedback_on_a_word_for_a_reachable_item(kc: KeyContext, opts: GradeOptions, reveal: bool) -> None:
+    text = _grade(kc, opts, {"Kp_25_overshoot": "n/a"}, reveal=reveal)["Kp_25_overshoot"].feedback
+    shown = f"{kc.value('Kp_25_overshoot'):.4g}"
+    assert "incorrect" in text and (shown in text) == reveal

@@ -1,0 +1,80 @@
+"""Rigs without some predictions, and fits at a physical bound: answers, never errors.
+
+The light-damping rig is the case reported in issue 9: Kce at 0.6 of the default station's
+and ``feedback: inches``; its step overshoot peaks near 24 % before the loop turns unstable,
+so no P gain gives 25 % overshoot.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from grader.cli import main
+from grader.datasets import load
+from grader.identify import FlowGainFit, FrictionFit
+from grader.keys import build_key, read_key
+from grader.model import zloop
+from grader.stations import Station
+from grader.synth import make_dataset, paper_runs
+
+
+@pytest.fixture(scope="module")
+def light_rig(station: Station, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    truth = {**station.truth, "Kce": "4.33e-4 in^3/s/psi"}
+    st = station.model_copy(update={"station": "light", "feedback": "inches", "truth": truth})
+    assert zloop.gain_for_overshoot(st.params(), 0.25) is None  # the true rig has no 25 % gain either
+    return make_dataset(st, tmp_path_factory.mktemp("light") / "light", seed=3)
+
+
+def test_light_damping_rig_keys_with_a_not_reachable_gain(light_rig: Path, tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "key.json"
+    assert main(["key", str(light_rig), "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    entry = json.loads(out.read_text())["quantities"]["Kp_25_overshoot"]
+    assert entry["status"] == "not_reachable" and entry["value"] is None and entry["interval"] is None
+    m = re.search(r"peaks at (\d+) % overshoot below its critical gain ([\d.]+)", entry["reason"])
+    assert m and 10 <= int(m.group(1)) < 25
+    key = read_key(out)
+    assert float(m.group(2)) == pytest.approx(key.value("Kp_crit_model"), rel=2e-3)
+    assert key.quantities["Kp_no_overshoot"].reachable and key.value("Kp_no_overshoot") > 0
+    assert re.search(r"Kp_25_overshoot \*\s*│\s*not reachable", printed)
+    assert "* Kp_25_overshoot: the identified loop peaks at" in " ".join(printed.split())
+
+
+def test_missing_p_ramp_run_makes_the_ramp_error_not_reachable(station: Station, tmp_path: Path) -> None:
+    runs = [r for r in paper_runs(station.params()) if r.name != "ramp_p"]
+    key = build_key(load(make_dataset(station, tmp_path / "ds", seed=5, runs=runs)))
+    e = key.quantities["ramp_ess_P"]
+    assert not e.reachable and e.value is None and "no P-only ramp run" in (e.reason or "")
+    assert key.quantities["Kp_25_overshoot"].reachable
+
+
+SPEED = np.array([0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 6.0])
+
+
+@pytest.mark.parametrize(("force", "name", "fitted"), [
+    (1.2 - 0.02 * SPEED + 0.01 * np.sin(7 * SPEED), "B_", -0.02),  # B = 0 on the rig, fitted below 0
+    (0.3 * SPEED - 0.05 + 0.01 * np.cos(5 * SPEED), "Fc_", -0.05),
+])
+def test_friction_fit_below_zero_is_clipped_with_its_interval_and_a_note(force: np.ndarray, name: str,
+                                                                        fitted: float) -> None:
+    fit = FrictionFit().fit(SPEED, force)
+    e = getattr(fit, name)
+    lo, hi = e.interval
+    assert e.value == 0.0 and lo < fitted < hi and "clipped" in (e.note or "")
+    assert (not fit.B_is_zero_) if name == "Fc_" else fit.B_is_zero_
+
+
+def test_flow_fit_with_negative_leakage_is_clipped() -> None:
+    v = np.arange(-10.0, 10.01, 0.5)
+    i = 5.0 * v
+    reading = np.maximum(0.0385 * np.abs(i) - 0.02, 0.0) + 0.002 * np.sin(3 * v)
+    fit = FlowGainFit(Kamp=5.0).fit(v, np.abs(reading))
+    assert fit.leakage_.value == 0.0 and fit.leakage_.interval[0] < 0 and "clipped" in (fit.leakage_.note or "")
+    assert fit.Kq_.value == pytest.approx(0.0385, rel=0.01)
