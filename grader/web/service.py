@@ -20,7 +20,7 @@ from grader.grading.designs import RigCase, RigVerdict
 from grader.grading.grade import GradeOptions
 from grader.grading.results import SubmissionResult
 from grader.grading.selfcheck import self_check
-from grader.grading.submissions import Submission, from_mapping, read_submission
+from grader.grading.submissions import Submission, fallback_id, from_mapping, read_submission
 
 #: Filled in when a JSON document leaves them out (the API makes them optional).
 DOC_DEFAULTS: dict[str, Any] = {"submission_id": "self-check", "students": [{"name": "student"}]}
@@ -121,7 +121,11 @@ class CheckService:
         with tempfile.TemporaryDirectory(prefix="grader-web-") as tmp:
             path = Path(tmp) / f"upload{suffix}"  # never the client's name: nothing escapes the folder
             path.write_bytes(content)
-            return self.check(read_submission(path, limits=self.opts.limits))
+            try:
+                sub = read_submission(path, limits=self.opts.limits)
+            except SubmissionError as exc:  # name the student's file in the message, not ours
+                raise SubmissionError(str(exc).replace(path.name, fallback_id(Path(name)) + suffix, 1)) from None
+            return self.check(sub)
 
 
 def result_document(result: SubmissionResult) -> dict[str, Any]:

@@ -109,8 +109,8 @@ def test_upload_type_and_broken_files(client: TestClient) -> None:
     assert r.status_code == 415 and "unknown submission type" in r.json()["error"]
     r = client.post("/api/check-file", files={"file": ("lab.xlsx", b"PK\x03\x04 not a workbook")})
     assert r.status_code == 422 and "\n" not in r.json()["error"]
-    r = client.post("/api/check-file", files={"file": ("a.yaml", b"a: &x [1]\nb: *x\n")})
-    assert r.status_code == 422 and "aliases" in r.json()["error"]
+    r = client.post("/api/check-file", files={"file": ("group 7.yaml", b"a: &x [1]\nb: *x\n")})
+    assert r.status_code == 422 and r.json()["error"].startswith("group_7.yaml: YAML aliases")
     assert client.post("/api/check-file").status_code == 422
 
 
