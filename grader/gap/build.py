@@ -34,6 +34,8 @@ from grader.keys import MODEL_UNITS
 from grader.model import zloop
 
 Array = NDArray[np.float64]
+#: Cap on the half-width of a linear parameter's 95 % interval, in log ratio (a factor e^20 is "unbounded").
+MAX_LOG_WIDTH = 20.0
 
 
 def r6(x: float) -> float:
@@ -116,7 +118,8 @@ def candidate(state: FitState, cv: CrossValidation, before: CrossValidation, sco
     lin = {}
     for j, (name, unit) in enumerate(LINEAR):
         v0 = float(getattr(base.params, name))
-        lin[name] = value(v0 * np.exp(th[j]), unit, (v0 * np.exp(th[j] - k * se[j]), v0 * np.exp(th[j] + k * se[j])))
+        w = min(k * se[j], MAX_LOG_WIDTH)  # an unidentified coordinate: a finite, very wide interval
+        lin[name] = value(v0 * np.exp(th[j]), unit, (v0 * np.exp(th[j] - w), v0 * np.exp(th[j] + w)))
     after, bef = cv.overall, before.overall
     by_run = [RunShrink(run=run.name, heldout_nrmse_before=r6(b), heldout_nrmse_after=r6(a), shrink=r6(_shrink(b, a)))
               for run, b, a in zip(runs, before.heldout, cv.heldout)]
