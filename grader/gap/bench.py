@@ -37,6 +37,10 @@ from grader.stations import Station, load_station
 SWEEP = (1.0, 0.5, 0.25, 0.125, 0.0625)
 #: Magnitudes are drawn log-uniformly from [top/RANGE_SPAN, top] when the realistic range starts at 0.
 RANGE_SPAN = 10.0
+#: A current limit is drawn between this share of the largest current the step runs ask for and that current:
+#: a limit above it never acts, and no diagnosis could name it.
+SATURATION_SHARE = 0.4
+DAC_VOLTS = 10.0
 #: Critical gain of the default station (volts convention), to which the paper's step gains refer.
 PAPER_CRITICAL_GAIN = 56.0
 
@@ -66,8 +70,18 @@ def random_station(base: Station, rng: np.random.Generator) -> Station:
     return base.model_copy(update={"truth": truth, "noise": noise, "effects": {}, "given": given, "feedback": feedback})
 
 
-def effect_params(name: str, rng: np.random.Generator, strength: float | None = None) -> dict[str, float]:
-    """A magnitude for ``name``: random over its realistic range, or at ``strength`` × the range's top."""
+def step_demand(station: Station) -> float:
+    """The largest amplifier current [mA] the step runs ask for: the first sample's Kamp·Kp·k_fb·step,
+    within the DAC's ±10 V."""
+    p = station.params()
+    plans = [r for r in station_runs(station, None) if r.kind == "step"]
+    return max(p.Kamp * min(DAC_VOLTS, r.controller.Kp * p.k_fb * r.amplitude) for r in plans)
+
+
+def effect_params(name: str, rng: np.random.Generator, strength: float | None = None,
+                  demand: float = 50.0) -> dict[str, float]:
+    """A magnitude for ``name``: random over its realistic range, or at ``strength`` × the range's top;
+    a current limit lies between :data:`SATURATION_SHARE` of the step runs' ``demand`` [mA] and it."""
     out: dict[str, float] = {}
     for p in EFFECTS[name].params:
         if p.name in ("order", "zeta"):
@@ -75,9 +89,10 @@ def effect_params(name: str, rng: np.random.Generator, strength: float | None = 
         lo, hi = p.typical
         if p.name == "bits":  # 8 to 16 bit: boards from the coarse ones that matter to the fine ones
             out[p.name] = float(rng.integers(8, int(hi) + 1))
-        elif p.name == "i_max":  # saturation: strength 1 takes the range's bottom, 0 the amplifier's limit
+        elif p.name == "i_max":  # strength 1: SATURATION_SHARE of the demand, 0: the demand (or the amplifier's limit)
             s = rng.uniform(0.0, 1.0) if strength is None else strength
-            out[p.name] = float(50.0 - s * (50.0 - lo))
+            top = min(demand, p.hi)
+            out[p.name] = float(max(top * (1.0 - s * (1.0 - SATURATION_SHARE)), p.lo))
         elif strength is not None:
             out[p.name] = strength * hi
         else:
@@ -133,7 +148,7 @@ class BenchResult:
         return render(self.cases)
 
 
-def station_runs(station: Station, effects: EffectSet) -> list:
+def station_runs(station: Station, effects: EffectSet | None) -> list:
     """The paper's runs for ``station`` with the step gains scaled to its critical gain."""
     from grader.model import zloop
     from grader.synth import paper_runs
@@ -210,7 +225,8 @@ def run_benchmark(cfg: BenchConfig, *, progress: bool = True) -> BenchResult:
     try:
         for k, (names, strength) in enumerate(_plan(cfg, rng)):
             station = random_station(base, rng)
-            truth = EffectSet({n: effect_params(n, rng, strength) for n in names if n != NONE})
+            demand = step_demand(station)
+            truth = EffectSet({n: effect_params(n, rng, strength, demand) for n in names if n != NONE})
             label = "+".join(names)
             case = _one(station, truth, label, root / f"{k:04d}_{label}", int(rng.integers(2**31)), strength)
             result.cases.append(case)

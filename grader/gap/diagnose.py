@@ -37,6 +37,9 @@ from grader.gap.verdict import Ranking, Scored, decide, rank, scores
 Array = NDArray[np.float64]
 #: A verdict whose fit leaves this many times the noise's mean square searches a second effect (``second=None``).
 RESIDUAL_RATIO = 1.5
+#: Never searched as a second effect: in the closed loop viscous friction is a larger Kce (the runs cannot
+#: size it, so on top of another effect it only soaks up that effect's misfit); the friction test names it.
+NOT_SECOND = ("viscous_friction",)
 
 
 @dataclass(frozen=True)
@@ -148,7 +151,7 @@ def _which_effect(runs: Sequence[GapRun], base: baseline_mod.Baseline, candidate
         if second is None and names[rk.verdict] != NONE:
             second = _needs_second(found.states[rk.verdict], runs, noise_nrmse)
         if second and names[rk.verdict] != NONE:
-            others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict])]
+            others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict], *NOT_SECOND)]
             extra = _second(runs, base, found.states[rk.verdict], others, noise_nrmse, before, executor)
     cands = [built[i] for i in rk.order]
     y_aug = _model_y(found.states[rk.verdict], runs)
@@ -171,7 +174,9 @@ def _which_effect(runs: Sequence[GapRun], base: baseline_mod.Baseline, candidate
 def _quant_info(quant: quant_mod.Quantization | None) -> QuantizationInfo | None:
     if quant is None:
         return None
+    readoff = None if np.isnan(quant.readoff_share) else build.r6(quant.readoff_share)
     return QuantizationInfo(adc_step=build.value(quant.step, "in"), share_of_step=build.r6(quant.share),
+                            share_of_readoff=readoff,
                             bits=build.r6(quant.bits), limit_cycle=quant.limit_cycle, matters=quant.matters,
                             steady_state_error_band=build.value(quant.step / 2, "in"))
 

@@ -90,8 +90,9 @@ def _quantization(d: Diagnosis) -> str:
     if q is None or not q.matters:
         return ""
     cycle = " The step runs end in a limit cycle of a few counts." if q.limit_cycle else ""
+    readoff = "" if q.share_of_readoff is None else f", {100 * q.share_of_readoff:.2g} % of the smallest error read off"
     return (f"The readings are quantised in steps of {show(q.adc_step.value, 'in')} ({100 * q.share_of_step:.2g} % of "
-            f"the step command; about a {q.bits:.0f}-bit ±10 V ADC).{cycle} A steady-state error can only be read "
+            f"the step command{readoff}; about a {q.bits:.0f}-bit ±10 V ADC).{cycle} A steady-state error can only be read "
             f"to ±{show(q.steady_state_error_band.value, 'in')}, and a P loop may settle anywhere in that band round "
             "the set-point.")
 
@@ -125,7 +126,7 @@ def _which(d: Diagnosis, best: Candidate) -> str:
     if v.indistinguishable_from:
         others = ", ".join(effect_name(e) for e in v.indistinguishable_from)
         text += f" The data cannot tell it apart from: {others}; {v.separating_test} would separate them."
-    combo = _combination(d)
+    combo = combination(d)
     if v.second_effect == "viscous_friction" and combo is None or v.effect == "viscous_friction":
         text += f" {_viscous(d)}"
     if v.second_effect and combo is not None:
@@ -136,7 +137,7 @@ def _which(d: Diagnosis, best: Candidate) -> str:
     return text
 
 
-def _combination(d: Diagnosis) -> Candidate | None:
+def combination(d: Diagnosis) -> Candidate | None:
     """The candidate with the verdict's second effect added, if the diagnosis has one."""
     pair = {d.verdict.effect, d.verdict.second_effect}
     return next((c for c in d.candidates if "+" in c.effect and set(c.effect.split("+")) == pair), None)
@@ -153,7 +154,7 @@ def _how_far(d: Diagnosis, best: Candidate) -> str:
     text = (f"How far it shrinks: adding {effect_name(best.effect)} to the model removes "
             f"{100 * best.shrink:.0f} % of the gap on a typical run left out of the fit (NRMSE "
             f"{100 * best.heldout_nrmse_before:.2g} % → {100 * best.heldout_nrmse_after:.2g} %, geometric mean over runs).")
-    combo = _combination(d)
+    combo = combination(d)
     if combo is not None:
         shares = " and ".join(f"{effect_name(k)} {100 * v:.0f} %" for k, v in d.verdict.shares.items())
         text += (f" With {effect_name(d.verdict.second_effect or '')} too: {100 * combo.shrink:.0f} % "
