@@ -1,9 +1,13 @@
 """Answer keys: every quantity the grader checks, computed from one lab dataset.
 
 A key is JSON (schema :class:`Key`): ``quantities`` maps canonical item names to
-``{"value", "unit", "interval", "method", "inputs"}``; ``model`` holds the identified
-linear model (quantity strings) used for simulation and design checks; ``inputs_sha256``
-and ``generated_by`` record what produced it. Same inputs ⇒ byte-identical file.
+``{"value", "unit", "interval", "method", "inputs", "status", "reason", "note"}``;
+``model`` holds the identified linear model used for simulation and design checks;
+``inputs_sha256`` and ``generated_by`` record what produced it. An item the identified rig
+cannot have has ``status: "not_reachable"``, a null value and interval, and a ``reason``.
+Numbers are written at :data:`grader.precision.SIGNIFICANT_DIGITS` significant digits, so
+the same inputs give byte-identical files on every CPU. Keys written before ``status``,
+``reason`` and ``note`` existed still load (they default to ``"ok"``, null, null).
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from grader.errors import KeyFileError, validation_message
 from grader.identify import Estimate, Identification, identify, predictions
 from grader.model.linear import closed_loop_poles
 from grader.model.params import RigParams
+from grader.precision import round_group, round_sig, rounded
 
 SCHEMA = "grader.key/1"
 #: RigParams field -> unit written in the key's ``model`` block
@@ -31,7 +36,9 @@ MODEL_UNITS: dict[str, str] = {
 
 
 class KeyEntry(BaseModel):
-    """One key quantity. ``interval`` is the 95 % interval (null for structured values)."""
+    """One key quantity. ``interval`` is the 95 % interval (null for structured values and
+    not-reachable items); ``status`` ``not_reachable`` means the identified rig has no such
+    value (``value`` null, ``reason`` says why); ``note`` flags e.g. a value clipped at a bound."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
     value: Any
@@ -39,6 +46,13 @@ class KeyEntry(BaseModel):
     interval: tuple[float, float] | None
     method: str
     inputs: dict[str, Any]
+    status: Literal["ok", "not_reachable"] = "ok"
+    reason: str | None = None
+    note: str | None = None
+
+    @property
+    def reachable(self) -> bool:
+        return self.status != "not_reachable"
 
 
 class ModelBlock(BaseModel):
@@ -83,14 +97,14 @@ class Key(BaseModel):
         return self.quantities[item].value
 
 
-def _r(x: float) -> float:
-    return float(f"{x:.10g}")
-
-
 def _entry(e: Estimate) -> KeyEntry:
-    inputs = {k: (_r(v) if isinstance(v, float) else v) for k, v in e.inputs.items()}
+    inputs = rounded(dict(e.inputs))
+    if e.status == "not_reachable":
+        return KeyEntry(value=None, unit=e.unit, interval=None, method=e.method, inputs=inputs,
+                        status="not_reachable", reason=e.reason)
     lo, hi = e.interval
-    return KeyEntry(value=_r(e.value), unit=e.unit, interval=(_r(lo), _r(hi)), method=e.method, inputs=inputs)
+    return KeyEntry(value=round_sig(e.value), unit=e.unit, interval=(round_sig(lo), round_sig(hi)), method=e.method,
+                    inputs=inputs, note=e.note)
 
 
 def _poles_entry(ident: Identification) -> KeyEntry:
@@ -98,7 +112,7 @@ def _poles_entry(ident: Identification) -> KeyEntry:
     for run in ident.dataset.runs:
         poles = closed_loop_poles(ident.students_params, run.controller)
         runs.append({"run": run.name, "Kp": run.controller.Kp, "Ki": run.controller.Ki, "Kd": run.controller.Kd,
-                     "poles": [[_r(p.real), _r(p.imag)] for p in poles]})
+                     "poles": [round_group([p.real, p.imag]) for p in poles]})
     return KeyEntry(value=runs, unit="1/s", interval=None, inputs={},
                     method="roots of the continuous characteristic polynomial of the students' identified model, per run")
 
@@ -108,7 +122,7 @@ def build_key(dataset: Dataset) -> Key:
     ident = identify(dataset)
     quantities = {name: _entry(e) for name, e in {**ident.estimates, **predictions(ident)}.items()}
     quantities["closed_loop_poles"] = _poles_entry(ident)
-    model = ModelBlock(**{name: _r(getattr(ident.params, name)) for name in MODEL_UNITS})
+    model = ModelBlock(**{name: round_sig(getattr(ident.params, name)) for name in MODEL_UNITS})
     return Key(
         station=dataset.manifest.station, dataset=dataset.root.name, feedback=dataset.manifest.feedback,
         generated_by={"package": "grader", "version": __version__}, inputs_sha256=dataset.inputs_sha256,
@@ -117,8 +131,9 @@ def build_key(dataset: Dataset) -> Key:
 
 
 def key_json(key: Key) -> str:
-    """Canonical JSON text of ``key`` (sorted keys, two-space indent, trailing newline)."""
-    data = key.model_dump(mode="json", by_alias=True)
+    """Canonical JSON text of ``key`` (sorted keys, two-space indent, trailing newline,
+    numbers at :data:`~grader.precision.SIGNIFICANT_DIGITS` significant digits)."""
+    data = rounded(key.model_dump(mode="json", by_alias=True))
     return json.dumps(data, indent=2, sort_keys=True, ensure_ascii=False) + "\n"
 
 

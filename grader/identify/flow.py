@@ -43,7 +43,8 @@ class FlowGainFit:
     """Fit Kq from amplifier input volts and flow-meter readings [in³/s].
 
     Config: ``Kamp`` [mA/V]. Learned: ``Kq_`` [in³/s/mA], ``leakage_`` [in³/s],
-    ``null_current_`` [mA] (Estimates), ``linear_mask_`` (points used).
+    ``null_current_`` [mA] (Estimates), ``linear_mask_`` (points used). A leakage fitted
+    below 0 is clipped to 0 with a note.
     """
 
     def __init__(self, *, Kamp: float) -> None:
@@ -72,6 +73,7 @@ class FlowGainFit:
         self.Kq_ = Estimate(float(res.x[0]), "in**3/s/mA", float(se[0]),
                             "|Kq·(i−i0)| + leakage fitted over the linear region (saturation excluded)", note, dof)
         self.null_current_ = Estimate(float(res.x[1]), "mA", float(se[1]), "null of the same fit", note, dof)
-        self.leakage_ = Estimate(float(res.x[2]), "in**3/s", float(se[2]), "constant internal leakage of the same fit", note, dof)
+        self.leakage_ = Estimate(float(res.x[2]), "in**3/s", float(se[2]), "constant internal leakage of the same fit",
+                                 note, dof).clipped_below(0.0)
         self.linear_mask_ = mask
         return self

@@ -13,7 +13,8 @@ class FrictionFit:
     """Ordinary least squares for Coulomb level ``Fc_`` [lbf] and viscous ``B_`` [lbf·s/in].
 
     ``B_is_zero_`` is True when B's 95 % interval contains 0 (the model then takes B = 0,
-    as the lab concludes).
+    as the lab concludes). A fit below 0 (noise about a zero B or Fc) is clipped to 0,
+    keeping the fit's interval and a note.
     """
 
     def fit(self, speed: ArrayLike, force: ArrayLike) -> FrictionFit:
@@ -27,8 +28,9 @@ class FrictionFit:
         s2 = float(resid @ resid / dof) if dof > 0 else 0.0
         cov = s2 * np.linalg.inv(X.T @ X)
         note = {"points": float(v.size)}
-        self.Fc_ = Estimate(float(coef[0]), "lbf", float(np.sqrt(cov[0, 0])), "OLS of force on sign(speed) and speed", note, dof)
-        self.B_ = Estimate(float(coef[1]), "lbf*s/in", float(np.sqrt(cov[1, 1])), "OLS slope of force on speed", note, dof)
-        lo, hi = self.B_.interval
-        self.B_is_zero_ = bool(lo <= 0.0 <= hi)
+        Fc = Estimate(float(coef[0]), "lbf", float(np.sqrt(cov[0, 0])), "OLS of force on sign(speed) and speed", note, dof)
+        B = Estimate(float(coef[1]), "lbf*s/in", float(np.sqrt(cov[1, 1])), "OLS slope of force on speed", note, dof)
+        lo, hi = B.interval
+        self.B_is_zero_ = bool(lo <= 0.0 <= hi or B.value <= 0.0)
+        self.Fc_, self.B_ = Fc.clipped_below(0.0), B.clipped_below(0.0)
         return self

@@ -28,7 +28,8 @@ def test_key_has_every_canonical_item_with_unit_and_interval(key_text: str) -> N
     data = json.loads(key_text)
     for item in CANONICAL:
         entry = data["quantities"][item]
-        assert set(entry) == {"value", "unit", "interval", "method", "inputs"}
+        assert set(entry) == {"value", "unit", "interval", "method", "inputs", "status", "reason", "note"}
+        assert entry["status"] == "ok" and entry["reason"] is None
         parse_unit(entry["unit"]) if entry["unit"] != "dimensionless" else None
         if item != "closed_loop_poles":
             lo, hi = entry["interval"]
@@ -52,6 +53,16 @@ def test_default_key_is_up_to_date() -> None:
     root = reference_dir()
     checked_in = (root / "keys" / "default.json").read_text()
     assert key_json(build_key(load(root / "datasets" / "default"))) == checked_in
+
+
+def test_key_written_before_status_existed_still_loads(tmp_path: Path) -> None:
+    data = json.loads((reference_dir() / "keys" / "default.json").read_text())
+    for entry in data["quantities"].values():
+        for field in ("status", "reason", "note"):
+            entry.pop(field)
+    key = read_key(_write(tmp_path, json.dumps(data)))
+    assert all(e.status == "ok" and e.reachable for e in key.quantities.values())
+    assert key.value("Kq") == data["quantities"]["Kq"]["value"]
 
 
 def test_cli_key_writes_file_and_table(linear_dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
