@@ -223,17 +223,25 @@ def run_benchmark(cfg: BenchConfig, *, progress: bool = True) -> BenchResult:
     root = cfg.workdir or Path(tempfile.mkdtemp(prefix="bench-gap-"))
     result = BenchResult()
     try:
-        for k, (names, strength) in enumerate(_plan(cfg, rng)):
-            station = random_station(base, rng)
-            demand = step_demand(station)
-            truth = EffectSet({n: effect_params(n, rng, strength, demand) for n in names if n != NONE})
-            label = "+".join(names)
-            case = _one(station, truth, label, root / f"{k:04d}_{label}", int(rng.integers(2**31)), strength)
-            result.cases.append(case)
-            if progress:
-                print(f"[{k + 1}] {'ok ' if case.right else 'MISS'} {label} {json.dumps(truth.to_quantities())} -> "
-                      f"{'+'.join(case.named)} (shrink {case.shrink:.2f}, {case.seconds:.1f} s)", flush=True)
+        _collect(cfg, rng, base, root, result, progress)
+    except KeyboardInterrupt:  # Ctrl-C: the tables of the datasets done so far
+        print(f"interrupted after {len(result.cases)} datasets", flush=True)
     finally:
         if cfg.workdir is None:
             shutil.rmtree(root, ignore_errors=True)
     return result
+
+
+def _collect(cfg: BenchConfig, rng: np.random.Generator, base: Station, root: Path, result: BenchResult,
+             progress: bool) -> None:
+    """Generate and diagnose every planned dataset into ``result``."""
+    for k, (names, strength) in enumerate(_plan(cfg, rng)):
+        station = random_station(base, rng)
+        demand = step_demand(station)
+        truth = EffectSet({n: effect_params(n, rng, strength, demand) for n in names if n != NONE})
+        label = "+".join(names)
+        case = _one(station, truth, label, root / f"{k:04d}_{label}", int(rng.integers(2**31)), strength)
+        result.cases.append(case)
+        if progress:
+            print(f"[{k + 1}] {'ok ' if case.right else 'MISS'} {label} {json.dumps(truth.to_quantities())} -> "
+                  f"{'+'.join(case.named)} (shrink {case.shrink:.2f}, {case.seconds:.1f} s)", flush=True)

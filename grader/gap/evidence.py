@@ -63,8 +63,9 @@ def _add(verdict: Verdict, name: str, text: str) -> Verdict:
     if verdict.effect == NONE:
         return verdict.model_copy(update={"effect": name, "shares": {name: 1.0}, "explanation": text,
                                           "indistinguishable_from": [], "separating_test": None})
-    if verdict.second_effect is None:
-        return verdict.model_copy(update={"second_effect": name, "explanation": f"{verdict.explanation}; and {text}"})
+    if verdict.second_effect is None:  # no share of the held-out shrink: it is not fitted to the runs
+        return verdict.model_copy(update={"second_effect": name, "shares": {**verdict.shares, name: 0.0},
+                                          "explanation": f"{verdict.explanation}; and {text}"})
     return verdict
 
 

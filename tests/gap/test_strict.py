@@ -127,3 +127,10 @@ def test_readme_example_coulomb_friction_is_named(tmp_path: Path, capsys: pytest
     verdict = json.loads((out / "diagnosis.json").read_text(encoding="utf-8"))["verdict"]
     assert verdict["effect"] == "coulomb_friction"
     assert "Coulomb friction" in capsys.readouterr().out
+
+
+def test_friction_test_adds_viscous_friction_as_second_effect_with_no_share_of_the_shrink() -> None:
+    first = _none().model_copy(update={"effect": "coulomb_friction", "shares": {"coulomb_friction": 1.0}})
+    out = viscous(first, Friction(Fc=(2.0, 1.8, 2.2), B=(1.0, 0.8, 1.2)))
+    assert (out.effect, out.second_effect) == ("coulomb_friction", "viscous_friction")
+    assert out.shares == {"coulomb_friction": 1.0, "viscous_friction": 0.0}
