@@ -22,6 +22,7 @@ _COMMAND_MODULES = (
     "grader.grading.commands",
     "grader.gap.commands",
     "grader.assess.commands",
+    "grader.web.commands",
 )
 
 

@@ -1,8 +1,9 @@
 """The report charts, as PNG bytes (matplotlib, no global pyplot state).
 
 * Diverging stacked bars of the Likert items: centred on neutral (half of the
-  neutral share each side of 0), disagree left, agree right, one panel per lab,
-  items sorted by % agree.
+  neutral share each side of 0), disagree left, agree right, one panel per lab, the
+  statements in one order in every lab's panel (by % agree over all labs) so they compare
+  across labs.
 * The hours-per-week distribution.
 * Exam item scores by group, one panel per problem.
 """
@@ -53,14 +54,27 @@ def _colours(points: int) -> tuple[str, ...]:
     return tuple(colours)
 
 
-def _likert_panel(ax: Axes, items: Sequence[RatingStats], title: str, points: int) -> None:
-    """One panel: a diverging bar per item, sorted so the most agreed is on top."""
-    items = sorted(items, key=lambda i: (i.pct_agree or 0.0, i.statement))
+def statement_order(items: Sequence[RatingStats]) -> list[str]:
+    """Statements bottom to top: by % agree pooled over every lab that rated them (most agreed on top)."""
+    agree: dict[str, float] = {}
+    rated: dict[str, int] = {}
+    for i in items:
+        agree[i.statement] = agree.get(i.statement, 0.0) + (i.pct_agree or 0.0) * i.n
+        rated[i.statement] = rated.get(i.statement, 0) + i.n
+    return sorted(agree, key=lambda s: (agree[s] / rated[s] if rated[s] else 0.0, s))
+
+
+def _likert_panel(ax: Axes, items: Sequence[RatingStats], title: str, points: int, order: Sequence[str]) -> None:
+    """One panel: a diverging bar per statement of ``order`` (bottom to top)."""
+    by_statement = {i.statement: i for i in items}
+    labels = {i.statement: i.statement_label for i in items}
     colours = _colours(points)
     mid = (points + 1) / 2
-    for y, item in enumerate(items):
-        if item.n == 0:
-            ax.text(0, y, "no ratings", ha="center", va="center", fontsize=8, color="#555555")
+    for y, statement in enumerate(order):
+        item = by_statement.get(statement)
+        if item is None or item.n == 0:
+            text = "no ratings" if item is not None else "not asked for this lab"
+            ax.text(0, y, text, ha="center", va="center", fontsize=8, color="#555555")
             continue
         shares = 100.0 * np.array(item.counts) / item.n
         left = -shares[np.arange(1, points + 1) < mid].sum() - shares[np.arange(1, points + 1) == mid].sum() / 2
@@ -72,9 +86,9 @@ def _likert_panel(ax: Axes, items: Sequence[RatingStats], title: str, points: in
         ax.text(left + 1.5, y, f"{item.pct_agree:.0f}%", ha="left", va="center", fontsize=8, color="#053061")
         ax.annotate(f"n={item.n}", (1.01, y), xycoords=("axes fraction", "data"), ha="left", va="center",
                     fontsize=8, color="#333333")
-    ax.set_yticks(range(len(items)), [textwrap.fill(i.statement_label, 30) for i in items], fontsize=9)
+    ax.set_yticks(range(len(order)), [textwrap.fill(labels.get(s, s), 30) for s in order], fontsize=9)
     ax.set_xlim(-112, 112)
-    ax.set_ylim(-0.6, len(items) - 0.4)
+    ax.set_ylim(-0.6, len(order) - 0.4)
     ax.axvline(0, color="#333333", linewidth=0.8)
     ticks = [-100, -50, 0, 50, 100]
     ax.set_xticks(ticks, [f"{abs(t)}%" for t in ticks], fontsize=8)
@@ -84,17 +98,23 @@ def _likert_panel(ax: Axes, items: Sequence[RatingStats], title: str, points: in
 
 
 def likert_chart(report: SurveyReport) -> bytes:
+    """The Likert figure as PNG bytes (see :func:`likert_figure`)."""
+    return _png(likert_figure(report))
+
+
+def likert_figure(report: SurveyReport) -> Figure:
     """Diverging stacked bars, one panel per lab (and one for the overall statements)."""
-    panels: list[tuple[str, Sequence[RatingStats]]] = [
-        (lab.lab_name, [i for i in report.items if i.lab == lab.lab]) for lab in report.labs
+    lab_order = statement_order(report.items)
+    panels: list[tuple[str, Sequence[RatingStats], list[str]]] = [
+        (lab.lab_name, [i for i in report.items if i.lab == lab.lab], lab_order) for lab in report.labs
     ]
     if report.overall:
-        panels.append(("Overall ME 422 laboratory", list(report.overall)))
-    heights = [len(items) + 1.2 for _, items in panels]
+        panels.append(("Overall ME 422 laboratory", list(report.overall), statement_order(report.overall)))
+    heights = [len(order) + 1.2 for _, _, order in panels]
     fig = Figure(figsize=(9.5, 0.42 * sum(heights) + 1.2), layout="constrained")
     axes = fig.subplots(len(panels), 1, sharex=True, gridspec_kw={"height_ratios": heights})
-    for ax, (title, items) in zip(np.atleast_1d(axes), panels, strict=True):
-        _likert_panel(ax, items, title, report.scale.points)
+    for ax, (title, items, order) in zip(np.atleast_1d(axes), panels, strict=True):
+        _likert_panel(ax, items, title, report.scale.points, order)
     colours = _colours(report.scale.points)
     handles = [Patch(color=c, label=label) for c, label in zip(colours, report.scale.labels, strict=True)]
     fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=8, frameon=False)
@@ -102,7 +122,7 @@ def likert_chart(report: SurveyReport) -> bytes:
         "Student survey: share of ratings (bars centred on neutral; % disagree left, % agree right)",
         fontsize=11,
     )
-    return _png(fig)
+    return fig
 
 
 def hours_chart(hours: Hours) -> bytes:

@@ -7,6 +7,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from openpyxl import Workbook
+from openpyxl.cell.cell import Cell
 from openpyxl.drawing.image import Image
 from openpyxl.styles import Alignment, Font
 from openpyxl.worksheet.worksheet import Worksheet
@@ -22,16 +23,21 @@ from grader.assess.views import (
     survey_summary,
 )
 from grader.exports.cells import literal_text
+from grader.exports.sheets import fit_columns
 
 _FORMATS = {"int": "0", "pct": "0.0", "num": "0.000", "p": "0.0000", "text": "@"}
 _BOLD = Font(bold=True)
 _TITLE = Font(bold=True, size=12)
-_WIDE_TEXT = 90
-_HEADER_WIDTH = 16
+
+
+def _is_title(cell: Cell) -> bool:
+    """A view's or paragraph list's title: it overflows and does not size its column."""
+    return cell.font.sz == _TITLE.sz
 
 
 def _write_views(sheet: Worksheet, views: Sequence[View], start: int = 1) -> int:
-    """Write the views one under another; return the next free row."""
+    """Write the views one under another, freezing the sheet below the first one's header; return
+    the next free row."""
     row = start
     for view in views:
         sheet.cell(row=row, column=1, value=view.title).font = _TITLE
@@ -40,6 +46,8 @@ def _write_views(sheet: Worksheet, views: Sequence[View], start: int = 1) -> int
             cell = sheet.cell(row=row, column=col, value=header)
             cell.font, cell.alignment = _BOLD, Alignment(wrap_text=True, vertical="bottom")
         row += 1
+        if sheet.freeze_panes is None:
+            sheet.freeze_panes = f"A{row}"
         for values in view.rows:
             for col, (value, kind) in enumerate(zip(values, view.kinds, strict=True), start=1):
                 cell = sheet.cell(row=row, column=col, value=value)
@@ -58,25 +66,6 @@ def _write_paragraphs(sheet: Worksheet, title: str, lines: Iterable[str], start:
         cell.alignment = Alignment(wrap_text=wrap, vertical="top")
         row += 1
     return row + 1
-
-
-def _shown_width(value: object) -> int:
-    """Characters a cell shows: numbers as formatted (3 decimals), text as is."""
-    if isinstance(value, float):
-        return len(f"{value:.3f}")
-    return len(str(value))
-
-
-def _fit_columns(sheet: Worksheet) -> None:
-    """Width from headers (capped) and values; titles and long paragraphs overflow instead."""
-    for column in sheet.columns:
-        widths = [
-            min(_shown_width(c.value), _HEADER_WIDTH) if c.font.b else _shown_width(c.value)
-            for c in column
-            if c.value is not None and c.font.sz != _TITLE.sz
-        ]
-        longest = max((w for w in widths if w <= _WIDE_TEXT), default=8)
-        sheet.column_dimensions[column[0].column_letter].width = min(max(8, longest + 2), _WIDE_TEXT)
 
 
 def _image_sheet(workbook: Workbook, title: str, pngs: Sequence[bytes]) -> None:
@@ -104,7 +93,7 @@ def write_survey_xlsx(report: SurveyReport, images: Mapping[str, bytes], path: P
         if views:
             _write_views(workbook.create_sheet(title), views)
     for sheet in workbook.worksheets:
-        _fit_columns(sheet)
+        fit_columns(sheet, _is_title)
     _image_sheet(workbook, "Chart", [images[k] for k in ("likert", "hours") if k in images])
     notes = workbook.create_sheet("Notes")
     row = _write_paragraphs(notes, "What these data can and cannot show", report.limitations, 1)
@@ -119,7 +108,7 @@ def write_exam_xlsx(report: ExamReport, images: Mapping[str, bytes], path: Path)
     summary = workbook.active
     summary.title = "Summary"
     _write_views(summary, exam_views(report))
-    _fit_columns(summary)
+    fit_columns(summary, _is_title)
     text = workbook.create_sheet("Interpretation")
     row = _write_paragraphs(text, "What the comparison shows", [p.verdict for p in report.problems], 1)
     row = _write_paragraphs(text, informative_heading(report), report.why_uninformative, row)

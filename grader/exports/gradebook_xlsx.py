@@ -1,5 +1,7 @@
 """``gradebook.xlsx`` for the instructor: one row per submission and one column per item, plus
-a sheet of item statistics (mean score, statuses, the most common mistakes and their counts)."""
+a sheet of item statistics (mean score, statuses, the most common mistakes and their counts).
+Every sheet's header row is frozen (with the first column where it names the row) and its
+columns sized to their content."""
 
 from __future__ import annotations
 
@@ -7,12 +9,10 @@ from collections import Counter
 from collections.abc import Sequence
 
 from openpyxl import Workbook
-from openpyxl.styles import Font
 
 from grader.exports.cells import literal_text
+from grader.exports.sheets import fit_columns, header_row
 from grader.grading.results import STATUSES, SubmissionResult
-
-BOLD = Font(bold=True)
 
 
 def _grades_sheet(wb: Workbook, results: Sequence[SubmissionResult], items: list[str]) -> None:
@@ -24,7 +24,6 @@ def _grades_sheet(wb: Workbook, results: Sequence[SubmissionResult], items: list
         ws.append([r.submission_id, "; ".join(s.name for s in r.students), "; ".join(s.sis_user_id for s in r.students),
                    "; ".join(sorted({s.section for s in r.students if s.section})), "yes" if r.valid else "NO",
                    r.score, r.max_score, *(points.get(n) for n in items), r.error or ""])
-    ws.freeze_panes = "B2"
 
 
 def item_statistics(results: Sequence[SubmissionResult], items: list[str]) -> list[list[object]]:
@@ -60,6 +59,6 @@ def gradebook(results: Sequence[SubmissionResult], items: list[str]) -> Workbook
     for (item, mistake), n in sorted(counts.items(), key=lambda kv: (order.get(kv[0][0], len(order)), -kv[1], kv[0][1])):
         mk.append([item, mistake, n])
     for ws in wb.worksheets:
-        for cell in ws[1]:
-            cell.font = BOLD
+        header_row(ws, freeze_column="B" if ws.title != "mistakes" else "A")
+        fit_columns(ws)
     return literal_text(wb)

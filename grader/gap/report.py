@@ -21,7 +21,7 @@ padding:0 1rem;color:#222;line-height:1.45}
 h1{font-size:1.5rem}h2{font-size:1.2rem;margin-top:2rem;border-bottom:1px solid #ddd}
 table{border-collapse:collapse;font-size:.85rem;margin:.5rem 0 1rem}
 th,td{border:1px solid #ddd;padding:.25rem .5rem;vertical-align:top}th{background:#f3f3f3;text-align:left}
-td.n{text-align:right;font-variant-numeric:tabular-nums}img{max-width:100%;height:auto}
+td.n{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}img{max-width:100%;height:auto}
 .verdict{background:#eef7f1;border-left:4px solid #1b9e77;padding:.5rem 1rem}.meta{color:#555;font-size:.85rem}
 """
 
@@ -40,6 +40,18 @@ def _table(head: list[str], rows: list[list[str]], numeric: set[int] | None = No
     return f"<table><tr>{th}</tr>{body}</table>"
 
 
+#: What the report's two NRMSEs and the "noise alone" column mean (shown under the verdict).
+_GLOSSARY = """<p class="meta">How to read the numbers. NRMSE = ‖measured − model‖ / ‖measured − its mean‖ over a run
+(0 % is a perfect model; fit = 100 % − NRMSE). <b>Whole-run NRMSE</b> (“Where”, and the table below): the
+linear model named above, simulated over each complete run as it is, fitted to nothing; the overall figure is the
+root-mean-square over runs. <b>Held-out NRMSE</b> (“How far it shrinks”, and the candidates): each run predicted
+by a model whose parameters (β/Vt, Kce, Kq and the effect's own) were fitted to the other runs only
+(leave-one-run-out), typical value (geometric mean) over runs; it is lower than the whole-run figure because the
+fit also corrects the linear parameters. <b>Noise alone</b>: the NRMSE that even a perfect model would show
+because of the reading noise (the noise σ above divided by the run's standard deviation); a run whose NRMSE
+is close to it has no gap left to explain.</p>"""
+
+
 def _pct(x: float) -> str:
     return f"{100 * x:.3g} %"
 
@@ -49,7 +61,8 @@ def _gap_table(d: Diagnosis) -> str:
     for g in d.gap.by_run:
         segs = ", ".join(f"{s.segment.replace('_', ' ')} {_pct(s.share)}" for s in g.segments if s.samples)
         rows.append([g.run, g.kind, _pct(g.nrmse), f"{g.fit_percent:.1f} %", _pct(g.noise_nrmse), segs])
-    return _table(["run", "kind", "NRMSE", "fit", "noise alone", "share of the squared gap by segment"], rows, {2, 3, 4})
+    return _table(["run", "kind", "whole-run NRMSE", "fit", "noise alone", "share of the squared gap by segment"], rows,
+                  {2, 3, 4})
 
 
 def _readoff_table(d: Diagnosis) -> str:
@@ -89,7 +102,7 @@ def render_html(analysis: Analysis, images: dict[str, bytes]) -> str:
 <h1>Sim-to-real diagnosis of {html.escape(d.dataset)}</h1>
 <p class="meta">Station {html.escape(d.station)} · linear model: {html.escape(d.baseline.method)} ·
 noise σ ≈ {show(d.noise.sigma.value, "in")} · grader {html.escape(d.generated_by.get("version", ""))}</p>
-<div class="verdict">{paras}</div>
+<div class="verdict">{paras}</div>{_GLOSSARY}
 <h2>Where the gap lies</h2>{_gap_table(d)}
 <h2>What students read off</h2>{_readoff_table(d)}
 <h2>Which effect</h2>{_img(images["candidates.png"], "candidates ranked by shrink")}{_candidate_table(d)}

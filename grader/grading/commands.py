@@ -95,13 +95,10 @@ def _check(args: argparse.Namespace) -> int:
         print(f"cannot read the submission: {exc}")
         return 1
     from grader.grading.pipeline import resolve_key
+    from grader.grading.selfcheck import self_check
 
-    try:
-        kc = resolve_key(sub, _store(args))
-    except GraderError as exc:
-        kc = None
-        print(f"note: no lab data to check against ({exc}); checking the prelab items only")
-    result = grade_submission(sub, kc, opts)
+    store = _store(args)
+    result = self_check(sub, lambda s: resolve_key(s, store), opts)
     console = Console(highlight=False)
     table = Table(title=f"grader check: {sub.submission_id}", show_lines=True)
     for col in ("item", "status", "feedback"):

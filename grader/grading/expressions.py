@@ -3,7 +3,11 @@
 The text is parsed by :func:`ast.parse` (which never executes anything) and every node
 is checked against a whitelist: numbers, the course's symbols, ``+ - * / **`` (``^`` is
 read as ``**``), unary signs and parentheses. No names outside the course, no calls,
-attributes, subscripts, comparisons or strings. Exponents must be small integer
+attributes, subscripts, comparisons or strings. Before parsing, a small tokenizer
+(:func:`implicit_products`) writes the implicit products students type as ``*``:
+``4 beta Kq A``, ``4beta``, ``2(s+1)``, ``(s+1)(s+2)``, ``Kp Kamp``. A name is read whole
+(``Kpot`` is one symbol, never K*p*o*t), and an implicit product binds like ``*`` (so
+``1/2s`` is s/2: write ``1/(2s)``). Exponents must be small integer
 literals, and a static bound on how many polynomial terms the expression can expand
 to is enforced before anything is built. Nothing here calls ``eval``, ``sympify`` or
 ``parse_expr``: sympy objects and exact rational functions are built from the checked
@@ -13,6 +17,7 @@ tree (:func:`to_ratfunc`, :func:`to_sympy`).
 from __future__ import annotations
 
 import ast
+import keyword
 import math
 import re
 from collections.abc import Callable
@@ -37,6 +42,8 @@ ALIASES: dict[str, str] = {
 }
 _OPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**"}
 _LHS = re.compile(r"^[A-Za-z_(){}\s/]*$")
+_TOKEN = re.compile(r"(?P<num>(?:\d[\d_]*(?:\.[\d_]*)?|\.\d[\d_]*)(?:[eE][+-]?\d+)?)|(?P<name>[^\W\d]\w*)"
+                    r"|(?P<space>\s+)|(?P<other>.)", re.S)
 _TRANSLATE = str.maketrans({"^": "**", "−": "-", "×": "*", "·": "*", "÷": "/", "⋅": "*"})
 
 
@@ -107,6 +114,47 @@ def _strip_equation(text: str) -> str:
     if _LHS.match(lhs):
         return rhs
     raise ExpressionError(f"left of '=' must be a name such as 'X(s)/R(s)', got {lhs!r}")
+
+
+def _kind(match: re.Match[str]) -> str:
+    """The token's role for implicit products: ``num``, ``sym`` (a name that is not a keyword),
+    ``(``, ``)``, or ``other``."""
+    kind, text = match.lastgroup or "other", match.group()
+    if kind == "name":
+        return "other" if keyword.iskeyword(text) else "sym"
+    return text if kind == "other" and text in "()" else kind
+
+
+def _implied(left: str, right: str, left_text: str) -> bool:
+    """Whether a ``*`` is implied between two adjacent tokens (spaces between them allowed)."""
+    if left not in ("num", "sym", ")") or right not in ("sym", "("):
+        return False
+    # a name before '(' is a product only for the course's symbols (else a refused call, e.g. exp(s))
+    return right != "(" or left != "sym" or ALIASES.get(left_text, left_text) in COURSE_SYMBOLS
+
+
+def implicit_products(text: str) -> str:
+    """``text`` with a ``*`` written at each implicit product (a tokenizer; nothing is evaluated).
+
+    A product is implied between a number, name or ``)`` and a following name or ``(``:
+    ``4 beta Kq A``, ``4beta``, ``2(s+1)``, ``(s+1)(s+2)``, ``Kp Kamp``, ``Kp(s+1)``. Names are read
+    whole (``Kpot`` is one symbol) and keywords are never operands. Only ``*`` is ever inserted.
+    """
+    out: list[str] = []
+    prev, prev_text = "other", ""
+    for m in _TOKEN.finditer(text):
+        kind = _kind(m)
+        if kind == "space":
+            out.append(m.group())
+            continue
+        if _implied(prev, kind, prev_text):
+            at = len(out)
+            while at and out[at - 1].isspace():
+                at -= 1
+            out.insert(at, "*")
+        out.append(m.group())
+        prev, prev_text = kind, m.group()
+    return "".join(out)
 
 
 def _number(node: ast.Constant, limits: Limits) -> Fraction:
@@ -208,11 +256,13 @@ def parse_expression(text: Any, *, limits: Limits = DEFAULT_LIMITS) -> Expressio
     body = _strip_equation(text.translate(_TRANSLATE).strip())
     if not body:
         raise ExpressionError("empty expression")
+    body = implicit_products(body)
     try:
         tree = ast.parse(body, mode="eval").body
     except SyntaxError as exc:
         col = f" near column {exc.offset}" if exc.offset else ""
-        raise ExpressionError(f"cannot read it{col}; write products with * (e.g. 4*A*beta) and powers with ^") from None
+        raise ExpressionError(f"cannot read it{col}; write products with * or a space (e.g. 4*A*beta or 4 A beta) "
+                              "and powers with ^") from None
     except (ValueError, RecursionError, MemoryError, OverflowError):
         raise ExpressionError("cannot read it: too deeply nested or too long") from None
     checker = _Checker(limits)

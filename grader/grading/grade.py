@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, MutableMapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -67,7 +67,10 @@ def _rig_lookup(opts: GradeOptions, kc: KeyContext | None, known: RigLookup) -> 
         if case not in known:
             spec = opts.rubric.items[item].design
             threshold = quantity_to_float(spec.limit_cycle, "in") if spec else 0.002
-            return rig_verdict(case, threshold=threshold)
+            verdict = rig_verdict(case, threshold=threshold)
+            if isinstance(known, MutableMapping):  # a caller's memo (the web server's)
+                known[case] = verdict
+            return verdict
         return known[case]
     return lookup
 
@@ -99,7 +102,7 @@ def _check(name: str, raw: Any, env: CheckEnv, done: Mapping[str, ItemResult]) -
 def grade_submission(sub: Submission, kc: KeyContext | None, opts: GradeOptions, *,
                      rig: RigLookup | None = None) -> SubmissionResult:
     """Every rubric item of ``sub`` (with ``kc`` None only the items that need no lab data)."""
-    env = CheckEnv(opts.rubric, kc, opts.convention, opts.reveal, opts.limits, _rig_lookup(opts, kc, rig or {}))
+    env = CheckEnv(opts.rubric, kc, opts.convention, opts.reveal, opts.limits, _rig_lookup(opts, kc, rig if rig is not None else {}))
     done: dict[str, ItemResult] = {}
     for name in opts.rubric.order():
         if kc is None and needs_key(name):

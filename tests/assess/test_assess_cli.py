@@ -15,6 +15,8 @@ from grader.assess import build_exam_report, build_survey_report, load_mapping, 
 from grader.assess.templates import survey_headers
 from grader.cli import main
 
+from ..exports.test_xlsx_layout import assert_widths_fit, frozen_header
+
 FIXTURES = Path(__file__).resolve().parents[2] / "submissions_fixtures" / "assessment"
 
 
@@ -94,6 +96,15 @@ def test_charts_are_embedded_in_the_xlsx(survey_out: Path, exam_out: Path) -> No
         with zipfile.ZipFile(out / "report.xlsx") as archive:
             assert len([n for n in archive.namelist() if n.startswith("xl/media/")]) == images
         assert load_workbook(out / "report.xlsx", read_only=True).sheetnames[0] == "Summary"
+
+
+def test_report_table_sheets_freeze_their_first_header_and_fit_columns(survey_out: Path, exam_out: Path) -> None:
+    for path in (survey_out / "report.xlsx", exam_out / "report.xlsx"):
+        wb = load_workbook(path)
+        tables = [ws for ws in wb.worksheets if ws.title not in ("Chart", "Notes", "Interpretation")]
+        assert len(tables) >= 1
+        for ws in tables:
+            assert_widths_fit(ws, frozen_header(ws))
 
 
 def test_survey_reports_contain_no_student_identifiers(survey_out: Path) -> None:

@@ -1,0 +1,1 @@
+"""The students' self-check web server (``grader serve``): page, JSON API and live preview."""

@@ -1,0 +1,98 @@
+"""What a reader sees in the run figures (measurement on top, legends off the data, no colliding
+labels, bands from the step on, titles that do not repeat themselves) and in the report's wording."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.text import Text
+
+from grader.gap.diagnose import Analysis
+from grader.gap.plots import draw_run, run_title
+from grader.gap.report import render_html
+from grader.gap.runs import GapRun
+from grader.gap.segments import segments_of
+from grader.model.params import Controller
+
+from .test_parts import _step_run
+
+
+def _oscillating_run() -> GapRun:
+    t = np.arange(0.0, 2.0, 0.001)
+    tau = np.clip(t - 0.1, 0.0, None)
+    y = np.where(t >= 0.1, 0.2 - 0.1 * np.cos(2 * np.pi * 25 * tau) * np.exp(0.3 * tau), 0.0)
+    r = np.where(t >= 0.1, 0.2, 0.0)
+    return GapRun("instability", "instability", Controller(58), t, r, y, None, 0.1, float(np.std(y)), np.zeros(t.size))
+
+
+def _figure(run: GapRun) -> Figure:
+    segs = segments_of(run, 0.0004)
+    fig = draw_run(run, segs, run.y * 1.02, run.y * 0.995, "coulomb_friction")
+    fig.draw_without_rendering()
+    return fig
+
+
+RUNS = {"step": lambda: _step_run(0.3), "instability": _oscillating_run}
+
+
+@pytest.mark.parametrize("kind", RUNS)
+def test_measured_is_drawn_on_top_and_models_thinner(kind: str) -> None:
+    top = _figure(RUNS[kind]()).axes[0]
+    lines = {line.get_label(): line for line in top.get_lines()}
+    measured = lines.pop("measured")
+    models = [lines["linear model"], lines["with Coulomb friction"]]
+    assert all(measured.get_zorder() > line.get_zorder() for line in lines.values())
+    assert all(measured.get_linewidth() > m.get_linewidth() for m in models)
+
+
+@pytest.mark.parametrize("kind", RUNS)
+def test_legend_sits_outside_the_data_panel(kind: str) -> None:
+    top = _figure(RUNS[kind]()).axes[0]
+    legend = top.get_legend()
+    assert legend is not None
+    assert legend.get_window_extent().y0 >= top.get_window_extent().y1 - 1
+
+
+@pytest.mark.parametrize("kind", RUNS)
+def test_no_two_labels_overlap(kind: str) -> None:
+    fig = _figure(RUNS[kind]())
+    hidden = {id(label) for ax in fig.axes for label in _ticklabels_out_of_view(ax)}
+    texts = [t for t in fig.findobj(Text) if t.get_visible() and t.get_text().strip() and id(t) not in hidden]
+    boxes = [(t.get_text(), t.get_window_extent()) for t in texts]
+    clashes = [(a, b) for (a, ba), (b, bb) in itertools.combinations(boxes, 2) if ba.overlaps(bb)]
+    assert not clashes
+
+
+def _ticklabels_out_of_view(ax: Axes) -> list[Text]:
+    """Tick labels matplotlib keeps but does not draw (their tick lies outside the view)."""
+    lo, hi = sorted(ax.get_ylim())
+    return [label for label in ax.get_yticklabels() if not lo <= label.get_position()[1] <= hi]
+
+
+@pytest.mark.parametrize("kind", RUNS)
+def test_segment_bands_start_at_the_step(kind: str) -> None:
+    run = RUNS[kind]()
+    bottom = _figure(run).axes[1]
+    starts = [p.get_x() for p in bottom.patches]
+    assert starts and min(starts) >= run.start - 1e-12
+
+
+def test_titles_do_not_repeat_the_kind() -> None:
+    assert run_title(_oscillating_run()) == "instability: Kp = 58"
+    assert run_title(_step_run(0.3)) == "s (step run): Kp = 10"
+
+
+def test_report_says_which_nrmse_is_which_and_what_noise_alone_means(analysed: Callable[..., Analysis]) -> None:
+    a = analysed("coulomb_friction", {"coulomb_friction": {"Fc": 2.0}})
+    images = {f"run_{r.name}.png": b"" for r in a.runs} | {"candidates.png": b""}
+    page = render_html(a, images)
+    head = page.split("<h2>Where the gap lies</h2>")[1].split("</tr>")[0]
+    assert "whole-run NRMSE" in head and "noise alone" in head
+    glossary = page.split("How to read the numbers.")[1].split("</p>")[0]
+    for term in ("Whole-run NRMSE", "Held-out NRMSE", "Noise alone", "leave-one-run-out", "reading noise"):
+        assert term in glossary
