@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 from grader.gap import plots
 from grader.gap.schema import Diagnosis, diagnosis_json
-from grader.gap.summary import READOFF_NAMES, effect_name, param_text, show, summary
+from grader.gap.summary import READOFF_NAMES, combination, effect_name, param_text, show, summary
 
 if TYPE_CHECKING:
     from grader.gap.diagnose import Analysis
@@ -84,6 +84,12 @@ def _candidate_table(d: Diagnosis) -> str:
                    "shrink"], rows, {3, 4, 5})
 
 
+def _augmented(d: Diagnosis) -> str:
+    """The effect(s) the augmented model adds: the verdict, with its second effect when that was fitted too."""
+    combo = combination(d)
+    return d.verdict.effect if combo is None else combo.effect
+
+
 def render_html(analysis: Analysis, images: dict[str, bytes]) -> str:
     """The report page."""
     d = analysis.diagnosis
@@ -101,7 +107,7 @@ noise σ ≈ {show(d.noise.sigma.value, "in")} · grader {html.escape(d.generate
 <h2>What students read off</h2>{_readoff_table(d)}
 <h2>Which effect</h2>{_img(images["candidates.png"], "candidates ranked by shrink")}{_candidate_table(d)}
 <h2>Runs: measured, linear and augmented model</h2>
-<p>Residuals are shaded by segment; the augmented model adds {html.escape(effect_name(d.verdict.effect))}.</p>{runs}
+<p>Residuals are shaded by segment; the augmented model adds {html.escape(effect_name(_augmented(d)))}.</p>{runs}
 {f"<h2>Notes</h2><ul>{notes}</ul>" if notes else ""}
 </body></html>
 """
@@ -111,7 +117,7 @@ def write_outputs(analysis: Analysis, out: Path) -> list[Path]:
     """Write diagnosis.json, report.html and the PNGs into ``out``; returns the paths written."""
     out.mkdir(parents=True, exist_ok=True)
     d = analysis.diagnosis
-    images = {f"run_{r.name}.png": plots.run_figure(r, s, yl, ya, d.verdict.effect)
+    images = {f"run_{r.name}.png": plots.run_figure(r, s, yl, ya, _augmented(d))
               for r, s, yl, ya in zip(analysis.runs, analysis.segments, analysis.y_linear, analysis.y_augmented)}
     images["candidates.png"] = plots.candidates_figure(d)
     written = []
