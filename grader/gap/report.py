@@ -5,8 +5,11 @@ from __future__ import annotations
 
 import base64
 import html
+import multiprocessing as mp
+import os
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from grader.gap import plots
 from grader.gap.schema import Diagnosis, diagnosis_json
@@ -113,13 +116,31 @@ noise σ ≈ {show(d.noise.sigma.value, "in")} · grader {html.escape(d.generate
 """
 
 
+def _plot(job: tuple[Any, ...]) -> bytes:
+    """One PNG: ``("run", run, segments, y_linear, y_augmented, effect)`` or ``("candidates", diagnosis)``."""
+    return plots.run_figure(*job[1:]) if job[0] == "run" else plots.candidates_figure(*job[1:])
+
+
+def _render_plots(analysis: Analysis) -> dict[str, bytes]:
+    """Every PNG of the report, rendered on all cores where processes fork (matplotlib is
+    single-threaded and the figures are independent; the bytes do not depend on the split)."""
+    d = analysis.diagnosis
+    jobs: dict[str, tuple[Any, ...]] = {
+        f"run_{r.name}.png": ("run", r, s, yl, ya, _augmented(d))
+        for r, s, yl, ya in zip(analysis.runs, analysis.segments, analysis.y_linear, analysis.y_augmented)}
+    jobs["candidates.png"] = ("candidates", d)
+    workers = min(len(jobs), os.cpu_count() or 1)
+    if workers < 2 or "fork" not in mp.get_all_start_methods():
+        return {name: _plot(job) for name, job in jobs.items()}
+    with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as pool:
+        return dict(zip(jobs, pool.map(_plot, jobs.values())))
+
+
 def write_outputs(analysis: Analysis, out: Path) -> list[Path]:
     """Write diagnosis.json, report.html and the PNGs into ``out``; returns the paths written."""
     out.mkdir(parents=True, exist_ok=True)
     d = analysis.diagnosis
-    images = {f"run_{r.name}.png": plots.run_figure(r, s, yl, ya, _augmented(d))
-              for r, s, yl, ya in zip(analysis.runs, analysis.segments, analysis.y_linear, analysis.y_augmented)}
-    images["candidates.png"] = plots.candidates_figure(d)
+    images = _render_plots(analysis)
     written = []
     for name, data in images.items():
         (out / name).write_bytes(data)
