@@ -14,18 +14,19 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from grader import __version__
 from grader.datasets import Dataset, load
 from grader.errors import KeyFileError, validation_message
-from grader.identify import Estimate, Identification, identify, predictions
-from grader.model.linear import closed_loop_poles
 from grader.model.params import RigParams
 from grader.outpaths import write_text
 from grader.precision import round_group, round_sig, rounded
+
+if TYPE_CHECKING:  # the identification (scipy, python-control) is imported only to build a key
+    from grader.identify import Estimate, Identification
 
 SCHEMA = "grader.key/1"
 #: RigParams field -> unit written in the key's ``model`` block
@@ -109,6 +110,8 @@ def _entry(e: Estimate) -> KeyEntry:
 
 
 def _poles_entry(ident: Identification) -> KeyEntry:
+    from grader.model.linear import closed_loop_poles
+
     runs = []
     for run in ident.dataset.runs:
         poles = closed_loop_poles(ident.students_params, run.controller)
@@ -120,6 +123,8 @@ def _poles_entry(ident: Identification) -> KeyEntry:
 
 def build_key(dataset: Dataset) -> Key:
     """Identify the model from ``dataset`` and assemble its key."""
+    from grader.identify import identify, predictions
+
     ident = identify(dataset)
     quantities = {name: _entry(e) for name, e in {**ident.estimates, **predictions(ident)}.items()}
     quantities["closed_loop_poles"] = _poles_entry(ident)

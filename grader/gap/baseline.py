@@ -152,7 +152,7 @@ def choose(ds: Dataset, runs: Sequence[GapRun], *, key: str | Path | None, impli
             ident = identify(ds)
             return Baseline(ident.params.with_(sample_time=ds.given["sample_time"]), "identified",
                             "the students' identification (flow test, calibration, friction data, instability run)")
-        except IdentificationError as exc:
+        except GraderError as exc:  # e.g. a friction test whose slope B is clearly negative
             base = from_runs(ds, runs, implied_kfb)
             return Baseline(base.params, base.source, base.method, (f"students' identification failed: {exc}", *base.notes))
     return from_runs(ds, runs, implied_kfb)

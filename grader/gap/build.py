@@ -34,6 +34,13 @@ from grader.keys import MODEL_UNITS
 from grader.model import zloop
 
 Array = NDArray[np.float64]
+#: Cap on the half-width of a linear parameter's 95 % interval, in log ratio (a factor e^20 is "unbounded").
+MAX_LOG_WIDTH = 20.0
+#: Cap on the autocorrelation's variance inflation of the Gauss–Newton intervals.
+MAX_INFLATION = 100.0
+#: Least standard error of an effect parameter, relative to its value: the fitter's model is not the rig's
+#: (the students' linear model, the exact-ZOH simulator), which biases the fit by about a per cent.
+MODEL_FORM = 0.02
 
 
 def r6(x: float) -> float:
@@ -107,16 +114,18 @@ def candidate(state: FitState, cv: CrossValidation, before: CrossValidation, sco
               base: Baseline) -> Candidate:
     """One candidate's entry: parameters with jackknife-or-Gauss–Newton 95 % intervals, held-out gap, shrink."""
     c, th = state.candidate, state.theta
-    se = _theta_se(state, cv)
+    se = _theta_se(state, cv, [runs[i].n for i in state.runs])
     k = float(stats.t.ppf(0.975, max(len(runs) - 1, 1)))
     params = {}
     for j, fp in enumerate(c.params, start=N_LINEAR):
         v = th[j] * fp.scale
-        params[c.label(fp)] = value(v, fp.unit, (max(fp.lo, v - k * se[j] * fp.scale), min(fp.hi, v + k * se[j] * fp.scale)))
+        half = k * max(se[j] * fp.scale, MODEL_FORM * abs(v))
+        params[c.label(fp)] = value(v, fp.unit, (max(fp.lo, v - half), min(fp.hi, v + half)))
     lin = {}
     for j, (name, unit) in enumerate(LINEAR):
         v0 = float(getattr(base.params, name))
-        lin[name] = value(v0 * np.exp(th[j]), unit, (v0 * np.exp(th[j] - k * se[j]), v0 * np.exp(th[j] + k * se[j])))
+        w = min(k * se[j], MAX_LOG_WIDTH)  # an unidentified coordinate: a finite, very wide interval
+        lin[name] = value(v0 * np.exp(th[j]), unit, (v0 * np.exp(th[j] - w), v0 * np.exp(th[j] + w)))
     after, bef = cv.overall, before.overall
     by_run = [RunShrink(run=run.name, heldout_nrmse_before=r6(b), heldout_nrmse_after=r6(a), shrink=r6(_shrink(b, a)))
               for run, b, a in zip(runs, before.heldout, cv.heldout)]
@@ -130,11 +139,31 @@ def _shrink(before: float, after: float) -> float:
     return 1.0 - after / before if before > 0 else 0.0
 
 
-def _theta_se(state: FitState, cv: CrossValidation) -> Array:
-    """max(jackknife over folds, Gauss–Newton with the residual variance) per θ coordinate."""
+def _ar1_inflation(res: Array, lengths: Sequence[int]) -> float:
+    """Variance inflation (1 + ρ)/(1 − ρ) of a mean of AR(1) residuals, ρ the lag-1 autocorrelation within
+    each run (runs weighted by their squared residual; at most :data:`MAX_INFLATION`): a fit's residuals
+    are correlated from sample to sample (model mismatch, noise filtered by the loop), so the residual
+    variance alone overstates the information in the samples."""
+    num = den = 0.0
+    pos = 0
+    for n in lengths:
+        r = res[pos:pos + n]
+        pos += n
+        ss = float(r @ r)
+        if n < 3 or ss <= 0.0:
+            continue
+        rho = min(max(float(r[1:] @ r[:-1]) / ss, 0.0), 0.999)
+        num += ss * (1.0 + rho) / (1.0 - rho)
+        den += ss
+    return min(num / den, MAX_INFLATION) if den > 0 else 1.0
+
+
+def _theta_se(state: FitState, cv: CrossValidation, lengths: Sequence[int]) -> Array:
+    """max(jackknife over folds, Gauss–Newton with the residual variance inflated for the residuals'
+    autocorrelation, :func:`_ar1_inflation`) per θ coordinate."""
     assert state.jac is not None
     n, p = state.res.size, state.theta.size
-    s2 = state.cost / max(n - p, 1)
+    s2 = state.cost / max(n - p, 1) * _ar1_inflation(state.res, lengths)
     cov = s2 * np.linalg.pinv(state.jac.T @ state.jac)
     return np.maximum(cv.jackknife_se(), np.sqrt(np.maximum(np.diag(cov), 0.0)))
 

@@ -42,9 +42,9 @@ def _diagnose(args: argparse.Namespace) -> int:
 def _bench(args: argparse.Namespace) -> int:
     from grader.gap.bench import TRUTHS, BenchConfig, run_benchmark
 
-    if args.n < 1:
-        raise DiagnosisError(f"--n must be at least 1, got {args.n}")
-    cfg = BenchConfig(n=args.n, seed=args.seed, effects=tuple(_effects(args.effects, TRUTHS) or ()) or None,
+    if args.n < 1 or args.pairs < 0:
+        raise DiagnosisError(f"--n must be at least 1 and --pairs at least 0, got {args.n} and {args.pairs}")
+    cfg = BenchConfig(n=args.n, pairs=args.pairs, seed=args.seed, effects=tuple(_effects(args.effects, TRUTHS) or ()) or None,
                       sweep=args.sweep, workdir=output_folder(args.workdir) if args.workdir else None)
     print(run_benchmark(cfg).text())
     return 0
@@ -56,10 +56,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--out", default="diagnosis", help="folder for diagnosis.json, report.html and plots (default: diagnosis)")
     p.add_argument("--key", help="answer key whose linear model to use (default: identify it from the dataset)")
     p.add_argument("--effects", help="comma-separated candidate effects to try (default: all)")
-    p.add_argument("--second", action="store_true", help="also try a second effect on top of the verdict, greedily")
+    p.add_argument("--second", action="store_true", default=None,
+                   help="always try a second effect on top of the verdict (default: when the verdict leaves a residual above the noise)")
     p.set_defaults(handler=_diagnose)
     p = sub.add_parser("bench-gap", help="withheld-effect benchmark of the diagnosis on synthetic datasets")
     p.add_argument("--n", type=int, default=5, help="datasets per effect (default: 5)")
+    p.add_argument("--pairs", type=int, default=0, help="datasets with two effects at once (default: 0)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--effects", help="comma-separated effects to benchmark (default: all, plus none)")
     p.add_argument("--sweep", action="store_true", help="also measure accuracy as each effect shrinks toward the noise")

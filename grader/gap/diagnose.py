@@ -18,20 +18,28 @@ from numpy.typing import NDArray
 from grader import __version__
 from grader.datasets import Dataset, load
 from grader.gap import baseline as baseline_mod
-from grader.gap import build
+from grader.gap import build, evidence
 from grader.gap import noise as noise_mod
+from grader.gap import quantization as quant_mod
 from grader.gap.backend import Backend, Point, worker
 from grader.gap.candidates import NONE, Candidate, make_candidates
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.runs import GapRun, check_gains, prepare_runs
 from grader.gap.schema import Candidate as SchemaCandidate
-from grader.gap.schema import Diagnosis, Verdict
+from grader.gap.schema import Diagnosis, QuantizationInfo, Verdict
 from grader.gap.search import SearchResult, search, second_effect
 from grader.gap.segments import Segment, segments_of
+from grader.gap.separating import separating_test
+from grader.model.effects import EFFECTS
 from grader.gap.verdict import Ranking, Scored, decide, rank, scores
 
 Array = NDArray[np.float64]
+#: A verdict whose fit leaves this many times the noise's mean square searches a second effect (``second=None``).
+RESIDUAL_RATIO = 1.5
+#: Never searched as a second effect: in the closed loop viscous friction is a larger Kce (the runs cannot
+#: size it, so on top of another effect it only soaks up that effect's misfit); the friction test names it.
+NOT_SECOND = ("viscous_friction",)
 
 
 @dataclass(frozen=True)
@@ -77,15 +85,33 @@ def _scored(found: SearchResult, runs: Sequence[GapRun]) -> list[Scored]:
             for s, cv in zip(found.states, found.cvs)]
 
 
+def _significant(cand: SchemaCandidate, effect: str) -> bool:
+    """Whether ``effect``'s fitted parameter in ``cand`` is clearly away from "no effect" (95 % interval)."""
+    spec = EFFECTS[effect]
+    for p in spec.params[:1]:
+        v = cand.params.get(f"{effect}.{p.name}") or cand.params.get(p.name)
+        if v is None or v.interval is None:
+            return False
+        return v.interval[1] < p.hi if p.name == "i_max" else v.interval[0] > 0
+    return True
+
+
 def _second(runs: Sequence[GapRun], base: baseline_mod.Baseline, first: FitState, others: Sequence[Candidate],
-            noise_nrmse: Array, executor: Executor | None) -> tuple[FitState, CrossValidation, float] | None:
-    """The best second effect on top of ``first`` if it explains clearly more than ``first`` alone, else None."""
+            noise_nrmse: Array, before: CrossValidation,
+            executor: Executor | None) -> tuple[FitState, SchemaCandidate] | None:
+    """The best second effect on top of ``first`` if it explains clearly more than ``first`` alone, else None;
+    an addition whose parameter's 95 % interval reaches "no effect" is no second effect (it only moved the
+    first effect's optimum)."""
     found = second_effect(runs, base.params, first, others, executor=executor)
     scored = _scored(found, runs)
-    pick, _, _ = decide(scored, noise_nrmse, reference=len(scored) - 1)
-    if pick == len(scored) - 1:
+    sc = scores(scored)
+    built = [build.candidate(st, cv, before, float(s), runs, base) for st, cv, s in zip(found.states, found.cvs, sc)]
+    keep = [i for i, st in enumerate(found.states[:-1]) if _significant(built[i], st.candidate.names[-1])]
+    keep.append(len(scored) - 1)
+    pick, _, _ = decide([scored[i] for i in keep], noise_nrmse, reference=len(keep) - 1)
+    if pick == len(keep) - 1:
         return None
-    return found.states[pick], found.cvs[pick], float(scores(scored)[pick])
+    return found.states[keep[pick]], built[keep[pick]]
 
 
 def _verdict(rk: Ranking, names: list[str]) -> Verdict:
@@ -95,50 +121,80 @@ def _verdict(rk: Ranking, names: list[str]) -> Verdict:
         text = "no candidate effect explains clearly more than the noise"
     else:
         text = f"{v} explains the gap best"
+    test = separating_test(v, ties)
     if ties:
-        text += f"; the data cannot tell it apart from {', '.join(ties)}"
+        text += f"; the data cannot tell it apart from {', '.join(ties)}: {test} would separate them"
     return Verdict(effect=v, margin=build.r6(rk.margin), runner_up=None if rk.runner_up is None else names[rk.runner_up],
-                   confidence=build.r6(rk.confidence), indistinguishable_from=ties, explanation=text)
+                   confidence=build.r6(rk.confidence), indistinguishable_from=ties, separating_test=test,
+                   shares={} if v == NONE else {v: 1.0}, explanation=text)
+
+
+def _needs_second(state: FitState, runs: Sequence[GapRun], noise_nrmse: Array) -> bool:
+    """Whether the verdict's all-runs fit leaves a residual clearly above the noise (mean square over
+    RESIDUAL_RATIO times the noise's): then a pair of effects is searched."""
+    return float(np.mean(_fit_nrmse(state, runs) ** 2)) > RESIDUAL_RATIO * float(np.mean(noise_nrmse**2))
 
 
 def _which_effect(runs: Sequence[GapRun], base: baseline_mod.Baseline, candidates: Sequence[Candidate],
-                  noise_nrmse: Array, *, second: bool, parallel: bool) -> tuple[list[SchemaCandidate], list[Array], Verdict]:
-    """Search, rank, optionally add a second effect: (candidates best first, augmented model per run, verdict)."""
+                  noise_nrmse: Array, fr: evidence.Friction | None, *, second: bool | None,
+                  parallel: bool) -> tuple[list[SchemaCandidate], list[Array], Verdict]:
+    """Search, rank (the friction test breaking a Coulomb tie), optionally add a second effect:
+    (candidates best first, augmented model per run, verdict)."""
     with worker(parallel) as executor:
         found = search(runs, base.params, candidates, executor=executor)
         names = [s.candidate.effect for s in found.states]
         rk = rank(_scored(found, runs), noise_nrmse)
+        before = found.cvs[names.index(NONE)]
+        built = [build.candidate(st, cv, before, float(sc), runs, base) for st, cv, sc in zip(found.states, found.cvs, rk.scores)]
+        rk, why = evidence.coulomb_tie(rk, names, built, fr)
         extra = None
+        if second is None and names[rk.verdict] != NONE:
+            second = _needs_second(found.states[rk.verdict], runs, noise_nrmse)
         if second and names[rk.verdict] != NONE:
-            others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict])]
-            extra = _second(runs, base, found.states[rk.verdict], others, noise_nrmse, executor)
-    before = found.cvs[names.index(NONE)]
-    cands = [build.candidate(found.states[i], found.cvs[i], before, float(rk.scores[i]), runs, base) for i in rk.order]
+            others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict], *NOT_SECOND)]
+            extra = _second(runs, base, found.states[rk.verdict], others, noise_nrmse, before, executor)
+    cands = [built[i] for i in rk.order]
     y_aug = _model_y(found.states[rk.verdict], runs)
     verdict = _verdict(rk, names)
+    if why:
+        verdict = verdict.model_copy(update={"explanation": f"{verdict.explanation}; {why}"})
     if extra is not None:
-        state, cv, score = extra
+        state, pair = extra
         added = state.candidate.names[-1]
-        cands.append(build.candidate(state, cv, before, score, runs, base))
+        cands.append(pair)
         y_aug = _model_y(state, runs)
+        first = cands[0].shrink / pair.shrink if pair.shrink > 0 else 1.0
+        share = build.r6(min(max(first, 0.0), 1.0))
         verdict = verdict.model_copy(update={
-            "second_effect": added, "explanation": f"{verdict.explanation}; adding {added} on top explains clearly more"})
+            "second_effect": added, "shares": {verdict.effect: share, added: build.r6(1.0 - share)},
+            "explanation": f"{verdict.explanation}; adding {added} on top explains clearly more"})
     return cands, y_aug, verdict
 
 
-def _notes(noise: noise_mod.Noise, implied_kfb: float | None) -> list[str]:
+def _quant_info(quant: quant_mod.Quantization | None) -> QuantizationInfo | None:
+    if quant is None:
+        return None
+    readoff = None if np.isnan(quant.readoff_share) else build.r6(quant.readoff_share)
+    return QuantizationInfo(adc_step=build.value(quant.step, "in"), share_of_step=build.r6(quant.share),
+                            share_of_readoff=readoff,
+                            bits=build.r6(quant.bits), limit_cycle=quant.limit_cycle, matters=quant.matters,
+                            steady_state_error_band=build.value(quant.step / 2, "in"))
+
+
+def _notes(quant: quant_mod.Quantization | None, implied_kfb: float | None) -> list[str]:
     out = []
-    if noise.adc_step is not None:
-        out.append(f"the readings are quantised in steps of {noise.adc_step:.3g} in (an ADC): part of the noise floor")
+    if quant is not None and not quant.matters:
+        out.append(quant.text())
     if implied_kfb is None:
         out.append("no u column: the manifest's gains could not be checked against the recorded controller output")
     return out
 
 
 def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: Sequence[str] | None = None,
-            second: bool = False, parallel: bool = True) -> Analysis:
+            second: bool | None = None, parallel: bool = True) -> Analysis:
     """Run the diagnosis (see module docstring); ``effects`` limits the candidates (``none`` is always one);
-    ``second`` also tries a second effect on top of the verdict, greedily; ``parallel`` lets the simulator
+    ``second`` also tries a second effect on top of the verdict, greedily (None: when the verdict leaves a
+    residual clearly above the noise, see :func:`_needs_second`); ``parallel`` lets the simulator
     use a second core (a forked worker process)."""
     ds = load(dataset_dir)
     T = ds.given["sample_time"]
@@ -146,27 +202,31 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     implied = check_gains(runs, _reference_kfb(ds), T)
     base = baseline_mod.choose(ds, runs, key=key, implied_kfb=implied)
     noise = noise_mod.estimate(runs)
+    quant = quant_mod.assess(runs, noise, base.params.Kpot)
     backend = Backend(runs)
     y_lin = backend.all_runs([Point(base.params)])[0]
     segs = [segments_of(run, noise.floor) for run in runs]
     gap = build.gap([build.run_gap(r, y, s, noise) for r, y, s in zip(runs, y_lin, segs)])
 
     noise_nrmse = np.array([noise.floor / r.scale for r in runs])
-    cands, y_aug, verdict = _which_effect(runs, base, make_candidates(base.params, effects), noise_nrmse,
+    fr = evidence.friction(ds)
+    cands, y_aug, verdict = _which_effect(runs, base, make_candidates(base.params, effects), noise_nrmse, fr,
                                           second=second, parallel=parallel)
+    verdict = evidence.quantized(evidence.viscous(verdict, fr), quant)
     gain_unit = "dimensionless" if ds.manifest.feedback == "volts" else "V/in"
     diag = Diagnosis(
         dataset=ds.root.name, station=ds.manifest.station, inputs_sha256=ds.inputs_sha256,
         generated_by={"package": "grader", "version": __version__}, baseline=build.baseline_model(base),
         noise=build.noise_floor(noise), gap=gap,
         readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit),
-        candidates=cands, verdict=verdict, notes=[*base.notes, *_notes(noise, implied)],
+        candidates=cands, verdict=verdict, quantization=_quant_info(quant),
+        static_evidence={} if fr is None else fr.values(), notes=[*base.notes, *_notes(quant, implied)],
     )
     return Analysis(diag, runs, segs, y_lin, y_aug)
 
 
 def diagnose_dataset(dataset_dir: str | Path, *, key: str | Path | None = None, out: str | Path | None = None,
-                     effects: Sequence[str] | None = None, second: bool = False) -> Diagnosis:
+                     effects: Sequence[str] | None = None, second: bool | None = None) -> Diagnosis:
     """Diagnose the dataset in ``dataset_dir``; with ``out``, write diagnosis.json, report.html and PNG plots there."""
     analysis = analyse(dataset_dir, key=key, effects=effects, second=second)
     if out is not None:

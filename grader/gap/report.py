@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import base64
 import html
+import multiprocessing as mp
+import os
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from grader.gap import plots
 from grader.gap.schema import Diagnosis, diagnosis_json
-from grader.gap.summary import READOFF_NAMES, effect_name, param_text, show, summary
+from grader.gap.summary import READOFF_NAMES, combination, effect_name, param_text, show, summary
 
 if TYPE_CHECKING:
     from grader.gap.diagnose import Analysis
@@ -84,6 +87,12 @@ def _candidate_table(d: Diagnosis) -> str:
                    "shrink"], rows, {3, 4, 5})
 
 
+def _augmented(d: Diagnosis) -> str:
+    """The effect(s) the augmented model adds: the verdict, with its second effect when that was fitted too."""
+    combo = combination(d)
+    return d.verdict.effect if combo is None else combo.effect
+
+
 def render_html(analysis: Analysis, images: dict[str, bytes]) -> str:
     """The report page."""
     d = analysis.diagnosis
@@ -101,19 +110,37 @@ noise σ ≈ {show(d.noise.sigma.value, "in")} · grader {html.escape(d.generate
 <h2>What students read off</h2>{_readoff_table(d)}
 <h2>Which effect</h2>{_img(images["candidates.png"], "candidates ranked by shrink")}{_candidate_table(d)}
 <h2>Runs: measured, linear and augmented model</h2>
-<p>Residuals are shaded by segment; the augmented model adds {html.escape(effect_name(d.verdict.effect))}.</p>{runs}
+<p>Residuals are shaded by segment; the augmented model adds {html.escape(effect_name(_augmented(d)))}.</p>{runs}
 {f"<h2>Notes</h2><ul>{notes}</ul>" if notes else ""}
 </body></html>
 """
+
+
+def _plot(job: tuple[Any, ...]) -> bytes:
+    """One PNG: ``("run", run, segments, y_linear, y_augmented, effect)`` or ``("candidates", diagnosis)``."""
+    return plots.run_figure(*job[1:]) if job[0] == "run" else plots.candidates_figure(*job[1:])
+
+
+def _render_plots(analysis: Analysis) -> dict[str, bytes]:
+    """Every PNG of the report, rendered on all cores where processes fork (matplotlib is
+    single-threaded and the figures are independent; the bytes do not depend on the split)."""
+    d = analysis.diagnosis
+    jobs: dict[str, tuple[Any, ...]] = {
+        f"run_{r.name}.png": ("run", r, s, yl, ya, _augmented(d))
+        for r, s, yl, ya in zip(analysis.runs, analysis.segments, analysis.y_linear, analysis.y_augmented)}
+    jobs["candidates.png"] = ("candidates", d)
+    workers = min(len(jobs), os.cpu_count() or 1)
+    if workers < 2 or "fork" not in mp.get_all_start_methods():
+        return {name: _plot(job) for name, job in jobs.items()}
+    with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as pool:
+        return dict(zip(jobs, pool.map(_plot, jobs.values())))
 
 
 def write_outputs(analysis: Analysis, out: Path) -> list[Path]:
     """Write diagnosis.json, report.html and the PNGs into ``out``; returns the paths written."""
     out.mkdir(parents=True, exist_ok=True)
     d = analysis.diagnosis
-    images = {f"run_{r.name}.png": plots.run_figure(r, s, yl, ya, d.verdict.effect)
-              for r, s, yl, ya in zip(analysis.runs, analysis.segments, analysis.y_linear, analysis.y_augmented)}
-    images["candidates.png"] = plots.candidates_figure(d)
+    images = _render_plots(analysis)
     written = []
     for name, data in images.items():
         (out / name).write_bytes(data)

@@ -117,7 +117,22 @@ class Verdict(_Frozen):
     confidence: float = Field(ge=0, le=1, description="share of run-bootstrap resamples with the same winner")
     indistinguishable_from: list[str] = Field(description="candidates the data cannot tell apart from the verdict")
     second_effect: str | None = None
+    shares: dict[str, float] = Field(default_factory=dict, description="each named effect's share of the held-out shrink (sums to 1)")
+    separating_test: str | None = Field(None, description="the extra test that would separate the verdict from a candidate the data cannot tell apart from it")
     explanation: str
+
+
+class QuantizationInfo(_Frozen):
+    """What a quantising ADC does, when the readings show one."""
+
+    adc_step: Value
+    share_of_step: float = Field(description="ADC step as a fraction of the step command")
+    share_of_readoff: float | None = Field(None, description="ADC step as a fraction of the smallest error read off "
+                                                             "at the end of a step or ramp run (None: no error clearly above 0)")
+    bits: float = Field(description="estimated bits of a ±10 V ADC (from the step and Kpot)")
+    limit_cycle: bool = Field(description="the step runs end in a limit cycle of a few counts")
+    matters: bool = Field(description="named as an effect: at least 1 % of the step command or of an error read off, or a limit cycle")
+    steady_state_error_band: Value = Field(description="± band round the set-point in which a P loop may settle")
 
 
 class Diagnosis(_Frozen):
@@ -132,6 +147,9 @@ class Diagnosis(_Frozen):
     readoffs: list[ReadOff]
     candidates: list[Candidate]
     verdict: Verdict
+    quantization: QuantizationInfo | None = None
+    static_evidence: dict[str, dict[str, Value]] = Field(
+        default_factory=dict, description="effect parameters the static tests measure (friction test: Fc and B)")
     notes: list[str]
 
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)

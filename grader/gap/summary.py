@@ -59,7 +59,7 @@ def _where(d: Diagnosis) -> str:
     worst: RunGap = max(d.gap.by_run, key=lambda g: g.nrmse / max(g.noise_nrmse, 1e-12))
     seg = max(worst.segments, key=lambda s: s.share)
     ratio = worst.nrmse / max(worst.noise_nrmse, 1e-12)
-    text = (f"Where: the linear model fits the runs to {100 * (1 - d.gap.nrmse):.1f} % overall (NRMSE "
+    text = (f"Where: the linear model fits the whole runs to {100 * (1 - d.gap.nrmse):.1f} % overall (whole-run NRMSE "
             f"{100 * d.gap.nrmse:.2g} %). It misses most in run {worst.run} ({ratio:.1f} × the noise level), "
             f"{100 * seg.share:.0f} % of that gap during {SEGMENT_NAMES[seg.segment]}.")
     gaps = [r for r in d.readoffs if _relative_gap(r) > 0.1]
@@ -84,42 +84,81 @@ def _relative_gap(r: ReadOff) -> float:
     return 0.0 if abs(r.measured - r.predicted) < floor else abs(r.measured - r.predicted) / scale
 
 
+def _quantization(d: Diagnosis) -> str:
+    """One sentence on a quantising ADC that matters, or ''."""
+    q = d.quantization
+    if q is None or not q.matters:
+        return ""
+    cycle = " The step runs end in a limit cycle of a few counts." if q.limit_cycle else ""
+    readoff = "" if q.share_of_readoff is None else f", {100 * q.share_of_readoff:.2g} % of the smallest error read off"
+    return (f"The readings are quantised in steps of {show(q.adc_step.value, 'in')} ({100 * q.share_of_step:.2g} % of "
+            f"the step command{readoff}; about a {q.bits:.0f}-bit ±10 V ADC).{cycle} A steady-state error can only be read "
+            f"to ±{show(q.steady_state_error_band.value, 'in')}, and a P loop may settle anywhere in that band round "
+            "the set-point.")
+
+
+def _viscous(d: Diagnosis) -> str:
+    b = d.static_evidence.get("viscous_friction", {}).get("B")
+    if b is None or b.interval is None:
+        return ""
+    return (f"The friction test shows viscous friction B = {show(b.value, 'lbf*s/in')} (95 % interval "
+            f"{show(b.interval[0], 'lbf*s/in')} to {show(b.interval[1], 'lbf*s/in')}); in the closed loop it acts "
+            "almost exactly as a larger Kce, so the runs alone cannot name it.")
+
+
 def _which(d: Diagnosis, best: Candidate) -> str:
     v = d.verdict
+    if v.effect == "sensor_quantization":
+        return f"Which effect: sensor quantization. {_quantization(d)}"
     if v.effect == "none":
         text = ("Which effect: none stands out. No candidate effect explains clearly more than the measurement "
                 f"noise (about {show(_floor(d), 'in')} RMS); the linear model is as good as the data allow.")
     else:
         params = ", ".join(param_text(k, p) for k, p in best.params.items())
         runner = effect_name(v.runner_up or "none")
-        text = (f"Which effect: {effect_name(v.effect)}{f' ({params})' if params else ''}. It beats the runner-up, "
-                f"{runner}, by a margin of {v.margin:.2g} (log ratio of held-out scores); in "
-                f"{100 * v.confidence:.0f} % of resamples of the runs it stays the answer.")
+        text = f"Which effect: {effect_name(v.effect)}{f' ({params})' if params else ''}."
+        if v.margin > 0:
+            text += (f" It beats the runner-up, {runner}, by a margin of {v.margin:.2g} (log ratio of held-out "
+                     f"scores); in {100 * v.confidence:.0f} % of resamples of the runs it stays the answer.")
+        elif "friction test" in v.explanation:
+            why = next(part for part in v.explanation.split("; ") if "friction test" in part)
+            text += f" The runs alone rank it with {runner}; {why}."
     if v.indistinguishable_from:
         others = ", ".join(effect_name(e) for e in v.indistinguishable_from)
-        text += f" The data cannot tell it apart from: {others}."
-    combo = _combination(d)
+        text += f" The data cannot tell it apart from: {others}; {v.separating_test} would separate them."
+    combo = combination(d)
+    if v.second_effect == "viscous_friction" and combo is None or v.effect == "viscous_friction":
+        text += f" {_viscous(d)}"
     if v.second_effect and combo is not None:
         params = ", ".join(param_text(k, p) for k, p in combo.params.items())
         text += f" On top of it, {effect_name(v.second_effect)} explains clearly more ({params})."
+    elif v.second_effect == "sensor_quantization":
+        text += f" {_quantization(d)}"
     return text
 
 
-def _combination(d: Diagnosis) -> Candidate | None:
+def combination(d: Diagnosis) -> Candidate | None:
     """The candidate with the verdict's second effect added, if the diagnosis has one."""
-    return next((c for c in d.candidates if "+" in c.effect), None)
+    pair = {d.verdict.effect, d.verdict.second_effect}
+    return next((c for c in d.candidates if "+" in c.effect and set(c.effect.split("+")) == pair), None)
 
 
 def _how_far(d: Diagnosis, best: Candidate) -> str:
+    if d.verdict.effect == "sensor_quantization":
+        return ("How far it shrinks: the ADC is a measurement effect; no model of the rig fits the readings "
+                f"closer than its steps allow (held-out NRMSE of the re-fitted linear model "
+                f"{100 * best.heldout_nrmse_before:.2g} %).")
     if d.verdict.effect == "none":
         return (f"How far it shrinks: nothing to add. The re-fitted linear model predicts a typical left-out run "
                 f"with an NRMSE of {100 * best.heldout_nrmse_before:.2g} %.")
     text = (f"How far it shrinks: adding {effect_name(best.effect)} to the model removes "
             f"{100 * best.shrink:.0f} % of the gap on a typical run left out of the fit (NRMSE "
             f"{100 * best.heldout_nrmse_before:.2g} % → {100 * best.heldout_nrmse_after:.2g} %, geometric mean over runs).")
-    combo = _combination(d)
+    combo = combination(d)
     if combo is not None:
-        text += f" With {effect_name(d.verdict.second_effect or '')} too: {100 * combo.shrink:.0f} %."
+        shares = " and ".join(f"{effect_name(k)} {100 * v:.0f} %" for k, v in d.verdict.shares.items())
+        text += (f" With {effect_name(d.verdict.second_effect or '')} too: {100 * combo.shrink:.0f} % "
+                 f"(shares of that shrink: {shares}).")
     return text
 
 

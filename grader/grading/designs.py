@@ -20,15 +20,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from grader.errors import GraderError
-from grader.model import zloop
 from grader.grading.answers import DesignAnswer, Gains
 from grader.grading.rubric import DesignSpec
 from grader.model.effects import EffectSet
 from grader.model.params import Controller, RigParams
-from grader.model.rig import simulate_rig_batch
 from grader.model.rig_setup import DAC_LIMIT
 from grader.stations import load_station
-from grader.synth import station_effects
 
 RigVerdict = Literal["ok", "limit_cycle", "unstable"]
 STEP = 0.2  # [in], as in the lab's step runs
@@ -50,6 +47,8 @@ class ModelVerdict:
 
 def evaluate_design(item: str, answer: DesignAnswer, p: RigParams, spec: DesignSpec, *, ramp_rate: float) -> ModelVerdict:
     """Simulate ``answer`` on the model ``p`` and judge it against ``spec``."""
+    from grader.model import zloop  # scipy.signal and python-control: only when a design is graded
+
     g = answer.gains
     stable = zloop.is_stable(p, g)
     if item == "pd_design":
@@ -101,6 +100,8 @@ def classify(r: NDArray[np.float64], y: NDArray[np.float64], u: NDArray[np.float
 def _station_rig(station: str) -> tuple[RigParams, EffectSet] | None:
     """The station's true parameters and effects, without sensor noise: random noise would make a
     design's verdict depend on the other designs simulated in its batch."""
+    from grader.synth import station_effects
+
     try:
         s = load_station(station)
         effects = station_effects(s)
@@ -130,6 +131,8 @@ def rig_verdict(case: RigCase, *, threshold: float) -> RigVerdict | None:
 
 def _run(group: list[RigCase], rig: tuple[RigParams, EffectSet] | None, threshold: float,
          ramp_rate: float) -> dict[RigCase, RigVerdict | None]:
+    from grader.model.rig import simulate_rig_batch  # the compiled engine: only when a design is simulated
+
     if not group:
         return {}
     if rig is None:

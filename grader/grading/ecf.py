@@ -14,10 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from grader.errors import GraderError
-from grader.model import zloop
 from grader.grading.context import KeyContext
-from grader.identify.critical import coefficient_match
-from grader.model.linear import closed_loop_poles, ramp_error
 from grader.model.params import Controller, RigParams
 
 
@@ -35,6 +32,8 @@ def _upstream(kc: KeyContext, own: Mapping[str, float], names: tuple[str, ...]) 
 
 def _matching(which: int) -> Callable[[KeyContext, Mapping[str, float]], float]:
     def compute(kc: KeyContext, own: Mapping[str, float]) -> float:
+        from grader.identify.critical import coefficient_match
+
         u = _upstream(kc, own, _MATCH_INPUTS)
         x = kc.matching_inputs()
         k_fb = u["Kpot"] if kc.key.feedback == "volts" else 1.0
@@ -58,6 +57,9 @@ def student_model(kc: KeyContext, own: Mapping[str, float]) -> RigParams:
 
 def _prediction(kind: str) -> Callable[[KeyContext, Mapping[str, float]], Any]:
     def compute(kc: KeyContext, own: Mapping[str, float]) -> Any:
+        from grader.model import zloop  # scipy.signal, python-control: only when a prediction is recomputed
+        from grader.model.linear import closed_loop_poles, ramp_error
+
         p = student_model(kc, own)
         if kind == "no_overshoot":
             return _or_nan(zloop.gain_no_overshoot(p))

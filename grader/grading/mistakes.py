@@ -19,8 +19,6 @@ import numpy as np
 from grader.errors import GraderError
 from grader.grading import tf
 from grader.grading.context import KeyContext
-from grader.identify.critical import coefficient_match
-from grader.identify.flow import FlowGainFit
 from grader.model.params import G_IN_PER_S2, Feedback
 
 
@@ -44,6 +42,8 @@ class Mistake:
 
 def _match(kc: KeyContext, *, typo: bool = False, **overrides: float) -> tuple[float, float]:
     """(β/Vt, Kce) by the students' coefficient matching with some inputs changed."""
+    from grader.identify.critical import coefficient_match
+
     x = {**kc.matching_inputs(), **overrides}
     k_fb = x.pop("k_fb", kc.k_fb)
     x.pop("Kpot")
@@ -80,6 +80,8 @@ def _kpot_factor(kc: KeyContext) -> float:
 
 def _flow_unsubtracted(env: Env, item: str) -> float | None:
     """Kq from a line through the signed readings with the leakage left in."""
+    from grader.identify.flow import FlowGainFit
+
     if env.kc is None or env.kc.dataset.flow_test is None:
         return None
     v, q = env.kc.dataset.flow_test["input"], env.kc.dataset.flow_test["flow"]

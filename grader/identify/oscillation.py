@@ -18,8 +18,12 @@ from grader.identify.estimate import Estimate
 
 
 def _free_window(t: NDArray[np.float64], x: NDArray[np.float64], f0: float) -> NDArray[np.bool_]:
-    """From a quarter second after the start until the envelope first reaches 90 % of its peak."""
-    b, a = signal.butter(2, [0.5 * f0, 1.5 * f0], btype="band", fs=1.0 / np.median(np.diff(t)))
+    """From a quarter second after the start until the envelope first reaches 90 % of its peak.
+    The envelope comes from a band-pass round ``f0`` [Hz], its upper edge kept below the Nyquist
+    frequency (a loop sampled slowly can oscillate at a few samples per cycle)."""
+    fs = 1.0 / float(np.median(np.diff(t)))
+    high = min(1.5 * f0, 0.45 * fs)
+    b, a = signal.butter(2, [min(0.5 * f0, 0.5 * high), high], btype="band", fs=fs)
     env = np.abs(signal.hilbert(signal.filtfilt(b, a, x)))
     start = t[0] + 0.25 * (t[-1] - t[0]) if t[-1] - t[0] < 1.0 else t[0] + 0.25
     stop_idx = int(np.argmax(env >= 0.9 * env.max()))
@@ -44,9 +48,16 @@ def _ar1_inflation(resid: NDArray[np.float64]) -> float:
     return float(np.sqrt((1 + rho) / (1 - rho)))
 
 
+def _harmonic_factor(sigma: float, dt: NDArray[np.float64]) -> float:
+    """Harmonic mean of exp(σ·dt) over the window (1 for a steady oscillation)."""
+    return float(1.0 / np.mean(np.exp(-np.clip(sigma * dt, -50, 50))))
+
+
 class OscillationFit:
     """Learned: ``omega_`` [rad/s] and ``sigma_`` [1/s] (growth rate) as Estimates,
-    ``window_`` (t0, t1) [s] used for the fit."""
+    ``amplitude_`` [in] of the oscillation, the harmonic mean over ``window_`` (t0, t1) [s], the fit's
+    window (an amplitude-dependent damping such as Coulomb friction's acts on the fitted growth rate
+    through 1/amplitude, averaged over the window)."""
 
     def fit(self, t: ArrayLike, y: ArrayLike, *, start: float = 0.0) -> OscillationFit:
         t, y = np.asarray(t, float), np.asarray(y, float)
@@ -85,4 +96,5 @@ class OscillationFit:
         self.omega_ = Estimate(abs(float(best.x[3])), "rad/s", float(se[3]), "FFT peak refined by a growing-sinusoid fit", note, dof)
         self.sigma_ = Estimate(float(best.x[2]), "1/s", float(se[2]), "growth rate of the same fit", note, dof)
         self.window_ = (float(tw[0]), float(tw[-1]))
+        self.amplitude_ = float(np.hypot(best.x[4], best.x[5])) * _harmonic_factor(float(best.x[2]), tw - tm)
         return self

@@ -35,6 +35,9 @@ class Identification:
     students_params: RigParams
     kp_run: float
     dataset: Dataset
+    #: damping [lbf·s/in] with which the model's poles are placed at the instability run's oscillation
+    #: (viscous B plus Coulomb friction's equivalent, :func:`coulomb_damping`)
+    match_B: float = 0.0
 
 
 def command_start(run: Run) -> float:
@@ -53,6 +56,27 @@ def _instability_run(dataset: Dataset) -> Run:
     if not runs:
         raise IdentificationError(f"{dataset.root.name}: no run of kind 'instability'; β/Vt and Kce need one")
     return runs[0]
+
+
+def coulomb_damping(Fc: float, amplitude: float, omega: float) -> float:
+    """Viscous damping [lbf·s/in] equivalent to Coulomb friction ``Fc`` [lbf] over an oscillation of
+    ``amplitude`` [in] at ``omega`` [rad/s] (describing function: 4·Fc/(π·a·ω), the same energy lost
+    per cycle). The instability run's oscillation is small, so friction damps it noticeably: the
+    model's poles are placed with it, and the model keeps the viscous B only."""
+    return 4.0 * Fc / (np.pi * amplitude * omega) if amplitude > 0 and omega > 0 else 0.0
+
+
+def _placed(students: RigParams, kp: float, osc: OscillationFit, b_osc: float) -> tuple[RigParams, float]:
+    """The model with its poles placed at the measured oscillation, and the damping used: with
+    friction's equivalent damping ``b_osc``, or, where no model matches with it (an oscillation
+    shaped by valve saturation rather than friction), with the viscous B alone."""
+    try:
+        placed = match_sampled_poles(students.with_(B=b_osc), kp=kp, sigma=osc.sigma_.value, omega=osc.omega_.value)
+        return placed.with_(B=students.B), b_osc
+    except IdentificationError:
+        if b_osc == students.B:
+            raise
+        return match_sampled_poles(students, kp=kp, sigma=osc.sigma_.value, omega=osc.omega_.value), students.B
 
 
 def identify(dataset: Dataset) -> Identification:
@@ -86,7 +110,7 @@ def identify(dataset: Dataset) -> Identification:
     students = RigParams(A=g["A"], M=g["M"], Kamp=g["Kamp"], Kq=x["Kq"], Kpot=x["Kpot"], beta_over_Vt=bv, Kce=kce,
                          B=B_model, sample_time=g["sample_time"], feedback=dataset.manifest.feedback,
                          supply_pressure=g["supply_pressure"], i_max=g["i_max"])
-    model = match_sampled_poles(students, kp=kp, sigma=osc.sigma_.value, omega=osc.omega_.value)
+    model, b_osc = _placed(students, kp, osc, B_model + coulomb_damping(fric.Fc_.value, osc.amplitude_, osc.omega_.value))
     est = {
         "Kpot": pot.Kpot_,
         "Kq": flow.Kq_,
@@ -104,4 +128,5 @@ def identify(dataset: Dataset) -> Identification:
         "char_poly_a0_per_Kp": Estimate(a0k, "1/s**3" if volts else "in/V/s**3", ses[4],
                                         f"constant term per unit Kp, Kamp·{'Kpot·' if volts else ''}4β/Vt·Kq·A/M", inputs),
     }
-    return Identification(estimates=est, params=model, students_params=students, kp_run=kp, dataset=dataset)
+    return Identification(estimates=est, params=model, students_params=students, kp_run=kp, dataset=dataset,
+                          match_B=b_osc)

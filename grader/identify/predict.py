@@ -75,7 +75,8 @@ def predictions(ident: Identification) -> dict[str, Estimate]:
         se["Kpot"] = 0.0
 
     def evaluate(v: Mapping[str, float]) -> list[float]:
-        p = match_sampled_poles(base.with_(Kq=v["Kq"], Kpot=v["Kpot"]), kp=ident.kp_run, sigma=v["growth_rate"], omega=v["omega_crit"])
+        p = match_sampled_poles(base.with_(Kq=v["Kq"], Kpot=v["Kpot"], B=ident.match_B), kp=ident.kp_run,
+                                sigma=v["growth_rate"], omega=v["omega_crit"]).with_(B=base.B)
         kc = zloop.critical_gain(p)
         out = [p.beta_over_Vt, p.Kce, _or_nan(kc), _or_nan(zloop.gain_no_overshoot(p)), _or_nan(zloop.gain_for_overshoot(p, 0.25))]
         stable = ramp is not None and ramp.controller.Kp < kc

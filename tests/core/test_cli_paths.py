@@ -120,3 +120,15 @@ def test_every_writing_verb_is_in_the_table() -> None:
 
     sub = next(a for a in build_parser()._actions if a.dest == "verb")
     assert set(sub.choices) - {"check", "serve"} == set(FILE_VERBS) | set(FOLDER_VERBS)
+
+
+def test_prelab_check_imports_neither_the_simulators_nor_the_identification() -> None:
+    """``grader check`` on the prelab grades expressions only: python-control, scipy.signal and
+    scipy.optimize (the identification and the design simulations), matplotlib and numba stay out."""
+    fixture = ROOT / "submissions_fixtures" / "grading" / "prelab_only.json"
+    heavy = ("control", "scipy.signal", "scipy.optimize", "matplotlib", "numba", "grader.identify", "grader.model.zloop")
+    code = ("import sys, contextlib, io; from grader.cli import main\n"
+            f"with contextlib.redirect_stdout(io.StringIO()): rc = main(['check', {str(fixture)!r}])\n"
+            f"print(rc, ','.join(m for m in {heavy!r} if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert done.stdout.split() == ["0"]

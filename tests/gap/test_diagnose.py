@@ -13,6 +13,7 @@ import pytest
 from grader.gap.diagnose import Analysis, analyse, diagnose_dataset
 from grader.gap.report import write_outputs
 from grader.gap.schema import Diagnosis, diagnosis_json, json_schema
+from grader.gap.summary import effect_name
 
 from .conftest import FEW, MakeDataset
 
@@ -103,3 +104,23 @@ def test_without_static_files_the_loop_is_identified_from_the_runs(make: MakeDat
     assert d.baseline.params["Kpot"].value == pytest.approx(0.85, rel=0.01)  # from the recorded u
     assert d.verdict.effect == "coulomb_friction"
     assert d.candidates[0].params["Fc"].value == pytest.approx(2.0, rel=0.1)
+
+
+def test_two_effects_are_both_named_with_parameters_and_shares(make: MakeDataset, tmp_path: Path) -> None:
+    truth = {"valve_deadband": {"width": 1.0}, "sampling_delay": {"delay": 0.0015}}
+    analysis = analyse(make("two", truth), effects=FEW)
+    d = analysis.diagnosis
+    assert {d.verdict.effect, d.verdict.second_effect} == set(truth)
+    assert set(d.verdict.shares) == set(truth) and sum(d.verdict.shares.values()) == pytest.approx(1.0, abs=1e-5)
+    assert all(0.0 < s < 1.0 for s in d.verdict.shares.values())
+    pair = next(c for c in d.candidates if set(c.effect.split("+")) == set(truth))
+    for effect, params in truth.items():
+        for name, value in params.items():
+            assert pair.params[f"{effect}.{name}"].value == pytest.approx(value, rel=0.3)
+    assert pair.shrink > d.candidates[0].shrink
+    jsonschema.validate(json.loads(diagnosis_json(d)), json_schema())
+    write_outputs(analysis, tmp_path)
+    page = (tmp_path / "report.html").read_text(encoding="utf-8")
+    assert "the augmented model adds " + " + ".join(
+        effect_name(e) for e in pair.effect.split("+")) in page
+    assert "On top of it" in page and "shares of that shrink" in page

@@ -20,7 +20,7 @@ from grader.identify import FlowGainFit, FrictionFit
 from grader.keys import build_key, read_key
 from grader.model import zloop
 from grader.stations import Station
-from grader.synth import make_dataset, paper_runs
+from grader.synth import make_dataset, paper_runs, station_effects
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +28,7 @@ def light_rig(station: Station, tmp_path_factory: pytest.TempPathFactory) -> Pat
     truth = {**station.truth, "Kce": "4.33e-4 in^3/s/psi"}
     st = station.model_copy(update={"station": "light", "feedback": "inches", "truth": truth})
     assert zloop.gain_for_overshoot(st.params(), 0.25) is None  # the true rig has no 25 % gain either
-    return make_dataset(st, tmp_path_factory.mktemp("light") / "light", seed=3)
+    return make_dataset(st, tmp_path_factory.mktemp("light") / "light", seed=3, effects=station_effects(st))
 
 
 def test_light_damping_rig_keys_with_a_not_reachable_gain(light_rig: Path, tmp_path: Path,

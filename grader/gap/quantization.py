@@ -1,0 +1,85 @@
+"""Does a quantising ADC matter? The sensor_quantization verdict.
+
+The noise floor (:mod:`grader.gap.noise`) finds the readings' lattice step q [in]. It matters
+to the students when q is at least :data:`STEP_SHARE` of the step command or of the smallest error
+they read off at the end of a step or ramp run (steady-state and ramp errors are then read off in
+counts of q), or when the readings at the end of
+a step run hold a limit cycle of a few counts that noise does not explain (white-noise RMS
+below :data:`QUIET` q). Then the diagnosis names ``sensor_quantization``, estimates the bits
+of a ±10 V board from q and the pot gain Kpot (LSB = q·Kpot = 20 V / 2**bits) and states what
+it does to the steady-state error: with a P loop the position may settle anywhere in the
+±q/2 band round the set-point that reads as zero error.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from grader.gap.noise import Noise
+from grader.gap.runs import GapRun
+
+STEP_SHARE = 0.01
+QUIET = 0.3
+LIMIT_CYCLE_COUNTS = (1, 4)  # peak-to-peak readings, in counts, of a quantisation limit cycle
+TAIL = 0.3  # [s] end of a step run examined for a limit cycle
+ADC_SPAN = 20.0  # [V] a ±10 V board
+
+
+@dataclass(frozen=True)
+class Quantization:
+    """The ADC's step q [in], its share of the step command and of the smallest error read off (nan: none
+    read off), the estimated bits and whether it matters."""
+
+    step: float
+    share: float
+    bits: float
+    limit_cycle: bool
+    readoff_share: float = float("nan")
+
+    @property
+    def matters(self) -> bool:
+        return self.share >= STEP_SHARE or self.readoff_share >= STEP_SHARE or self.limit_cycle
+
+    def text(self) -> str:
+        """One sentence for the notes or the verdict."""
+        readoff = (f", {100 * self.readoff_share:.2g} % of the smallest error read off at the end of a run"
+                   if self.readoff_share == self.readoff_share else "")
+        core = (f"the readings are quantised in steps of {self.step:.3g} in ({100 * self.share:.2g} % of the step "
+                f"command{readoff}; about a {self.bits:.0f}-bit ±10 V ADC)")
+        if not self.matters:
+            return f"{core}: part of the noise floor"
+        cycle = "; the step runs end in a limit cycle of a few counts" if self.limit_cycle else ""
+        return (f"{core}{cycle}: a steady-state error is read to ±{self.step / 2:.3g} in at best, and a P loop "
+                f"may settle anywhere within ±{self.step / 2:.3g} in of the set-point")
+
+
+def _limit_cycle(run: GapRun, q: float, sigma: float) -> bool:
+    tail = run.y[run.t >= run.t[-1] - TAIL]
+    counts = round(float(np.ptp(tail)) / q)
+    return sigma < QUIET * q and LIMIT_CYCLE_COUNTS[0] <= counts <= LIMIT_CYCLE_COUNTS[1] and np.unique(tail).size > 1
+
+
+def _readoff_error(runs: Sequence[GapRun], q: float, sigma: float) -> float:
+    """The smallest error students read off [in]: |command − reading| averaged over the last :data:`TAIL`
+    of each step and ramp run, counting only errors clearly above zero (over q and 3 σ); nan if none."""
+    errors = [abs(float(np.mean(r.r[tail] - r.y[tail]))) for r in runs if r.kind in ("step", "ramp")
+              for tail in [r.t >= r.t[-1] - TAIL]]
+    clear = [e for e in errors if e > max(q, 3.0 * sigma)]
+    return min(clear) if clear else float("nan")
+
+
+def assess(runs: Sequence[GapRun], noise: Noise, kpot: float) -> Quantization | None:
+    """The ADC's effect, if the readings are quantised (see module docstring); ``kpot`` [V/in]."""
+    q = noise.adc_step
+    if q is None:
+        return None
+    steps = [r for r in runs if r.kind == "step"] or list(runs)
+    command = max(float(np.ptp(r.r)) for r in steps) or 1.0
+    bits = math.log2(ADC_SPAN / (q * kpot)) if q * kpot > 0 else float("nan")
+    white = noise.sigma
+    return Quantization(q, q / command, bits, any(_limit_cycle(r, q, white) for r in steps),
+                        q / _readoff_error(runs, q, white))

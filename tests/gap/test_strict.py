@@ -1,0 +1,136 @@
+"""Strict scoring, the quantising ADC, the friction test's evidence, separating tests, and the README's example."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from grader.cli import main
+from grader.gap.bench import Case
+from grader.gap.bench_report import render
+from grader.gap.evidence import Friction, viscous
+from grader.gap.noise import Noise
+from grader.gap.quantization import assess
+from grader.gap.runs import GapRun
+from grader.gap.schema import Verdict
+from grader.gap.separating import GENERIC, separating_test
+from grader.model.effects import EffectSet
+from grader.model.params import Controller
+from grader.model.rig_ivp import simulate_rig_ivp
+from grader.stations import load_station
+
+
+def _case(truth: str, verdict: str, second: str | None = None, runner_up: str | None = None) -> Case:
+    return Case(truth, None, verdict, second, runner_up, (), 0.8, 1.0, {})
+
+
+@pytest.mark.parametrize(("truth", "verdict", "second", "right"), [
+    ("none", "none", None, True),
+    ("none", "viscous_friction", None, False),  # a false positive
+    ("none", "none", "sensor_quantization", False),
+    ("viscous_friction", "none", None, False),  # 'none' is no longer right for a weak effect
+    ("sensor_quantization", "sensor_quantization", None, True),
+    ("coulomb_friction", "coulomb_friction", "sampling_delay", False),  # an extra effect is wrong
+    ("coulomb_friction+sampling_delay", "sampling_delay", "coulomb_friction", True),  # any order
+    ("coulomb_friction+sampling_delay", "coulomb_friction", None, False),  # only one of two
+])
+def test_a_verdict_is_right_only_when_it_names_exactly_the_withheld_effects(
+        truth: str, verdict: str, second: str | None, right: bool) -> None:
+    assert _case(truth, verdict, second).right is right
+
+
+def test_report_counts_strict_top1_top2_and_false_positives_on_none() -> None:
+    cases = [_case("none", "none"), _case("none", "viscous_friction"),
+             _case("viscous_friction", "none", runner_up="viscous_friction"), _case("sampling_delay", "sampling_delay"),
+             _case("coulomb_friction+sampling_delay", "coulomb_friction", "sampling_delay")]
+    text = render(cases)
+    assert "strict top-1 (one effect or none): 50.0 %   strict top-2: 75.0 %" in text
+    assert "false positives on none: 50.0 % (2 datasets)" in text
+    assert "two effects, both named: 100.0 %" in text
+    row = next(line for line in text.splitlines() if line.startswith("viscous_friction"))
+    assert row.split()[1] == "1" and row.endswith("0.0 %")  # confusion matrix: called none once
+
+
+def _settled_run(q: float, cycle_counts: int, command: float = 0.1) -> GapRun:
+    """A step run whose readings sit on a lattice of step ``q`` and end toggling over ``cycle_counts`` counts."""
+    t = np.arange(0.0, 1.0, 0.001)
+    r = np.where(t >= 0.1, command, 0.0)
+    x = np.where(t >= 0.1, command * (1 - np.exp(-(t - 0.1) * 30)), 0.0)
+    x = x + (np.arange(t.size) % 2) * cycle_counts * q * (t > 0.6)
+    y = np.round(x / q) * q
+    return GapRun("step", "step", Controller(10), t, r, y, None, 0.1, command, np.zeros(t.size))
+
+
+@pytest.mark.parametrize(("bits", "matters"), [(10, True), (16, False)])
+def test_quantisation_is_named_from_one_percent_of_the_step_command_and_its_bits_estimated(
+        bits: int, matters: bool) -> None:
+    kpot = 1.1  # [V/in]
+    q = 20.0 / 2**bits / kpot
+    run = _settled_run(q, 0)
+    quant = assess([run], Noise(sigma=1e-5, adc_step=q), kpot)
+    assert quant is not None and quant.matters is matters
+    assert quant.bits == pytest.approx(bits, abs=1e-9)
+    assert quant.share == pytest.approx(q / 0.1)
+    assert ("settle anywhere" in quant.text()) is matters
+
+
+def test_a_limit_cycle_of_a_few_counts_names_quantisation_below_one_percent() -> None:
+    q = 20.0 / 2**16  # [in] with Kpot = 1: 0.3 % of the command
+    quant = assess([_settled_run(q, 2)], Noise(sigma=1e-5, adc_step=q), 1.0)
+    assert quant is not None and quant.share < 0.01
+    assert quant.limit_cycle and quant.matters and "limit cycle" in quant.text()
+
+
+def test_no_lattice_no_quantisation() -> None:
+    assert assess([_settled_run(1e-3, 0)], Noise(sigma=1e-4, adc_step=None), 1.0) is None
+
+
+def _none() -> Verdict:
+    return Verdict(effect="none", margin=1.0, runner_up=None, confidence=1.0, indistinguishable_from=[],
+                   explanation="no candidate effect explains clearly more than the noise")
+
+
+@pytest.mark.parametrize(("B", "named"), [((1.0, 0.8, 1.2), True), ((0.05, -0.1, 0.2), False), ((0.02, 0.01, 0.03), False)])
+def test_friction_test_names_viscous_friction_only_when_its_slope_is_clearly_there(
+        B: tuple[float, float, float], named: bool) -> None:
+    out = viscous(_none(), Friction(Fc=(0.0, -0.1, 0.1), B=B))
+    assert (out.effect == "viscous_friction") is named
+    if named:
+        assert "B = 1 lbf·s/in" in out.explanation
+
+
+def test_separating_tests_are_named_for_known_pairs_and_a_generic_one_otherwise() -> None:
+    assert "slow ramp in both directions" in (separating_test("coulomb_friction", ["valve_deadband"]) or "")
+    assert "faster sample rate" in (separating_test("valve_dynamics", ["sampling_delay"]) or "")
+    assert separating_test("valve_saturation", ["coulomb_friction"]) == GENERIC
+    assert separating_test("valve_saturation", []) is None
+
+
+def test_solve_ivp_reference_reads_through_the_adc() -> None:
+    p = load_station("default").params().with_(feedback="volts")
+    r = np.where(np.arange(400) >= 20, 0.1, 0.0)
+    y, _ = simulate_rig_ivp(p, Controller(10), r, EffectSet({"sensor_quantization": {"bits": 10}}))
+    lsb = 20.0 / 2**10 / p.Kpot
+    assert np.allclose(y / lsb, np.round(y / lsb), atol=1e-9)
+    assert np.unique(np.round(y[-100:] / lsb)).size <= 3  # settles within a count or two
+
+
+def test_readme_example_coulomb_friction_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """README: ``grader simulate --station default --effect coulomb_friction:Fc=4lbf -o data/`` then
+    ``grader diagnose data`` (it named valve deadband before the friction test broke the tie)."""
+    data, out = tmp_path / "data", tmp_path / "diagnosis"
+    assert main(["simulate", "--station", "default", "--effect", "coulomb_friction:Fc=4lbf", "-o", str(data)]) == 0
+    assert main(["diagnose", str(data), "-o", str(out)]) == 0
+    verdict = json.loads((out / "diagnosis.json").read_text(encoding="utf-8"))["verdict"]
+    assert verdict["effect"] == "coulomb_friction"
+    assert "Coulomb friction" in capsys.readouterr().out
+
+
+def test_friction_test_adds_viscous_friction_as_second_effect_with_no_share_of_the_shrink() -> None:
+    first = _none().model_copy(update={"effect": "coulomb_friction", "shares": {"coulomb_friction": 1.0}})
+    out = viscous(first, Friction(Fc=(2.0, 1.8, 2.2), B=(1.0, 0.8, 1.2)))
+    assert (out.effect, out.second_effect) == ("coulomb_friction", "viscous_friction")
+    assert out.shares == {"coulomb_friction": 1.0, "viscous_friction": 0.0}
