@@ -103,7 +103,7 @@ def instability_gain(p: RigParams, effects: EffectSet, *, duration: float = 2.0)
         unstable = np.flatnonzero(_sustained(y, t, 0.1))
         return float(gains[unstable[0]]) if unstable.size else None
 
-    k_lin = zloop.critical_gain(p)
+    k_lin = zloop.critical_gain(p) / scale  # native convention -> volts convention
     step = float(max(1.0, np.ceil(0.05 * k_lin)))
     coarse = np.arange(max(0.5, np.floor(0.2 * k_lin)), 3.0 * k_lin + step, step)
     first = first_unstable(coarse)
@@ -120,7 +120,8 @@ def paper_runs(p: RigParams, effects: EffectSet | None = None) -> list[RunPlan]:
     instability run steps 0.2 in, as Coulomb friction damps small oscillations out)."""
     scale = 1.0 if p.feedback == "volts" else p.Kpot
     if effects is None:
-        k_unstable, step = float(np.ceil(zloop.critical_gain(p) * 1.015 * 2) / 2), 0.05
+        k_crit = zloop.critical_gain(p) / scale  # native convention -> volts convention
+        k_unstable, step = float(np.ceil(k_crit * 1.015 * 2) / 2), 0.05
     else:
         k_unstable, step = instability_gain(p, effects), INSTABILITY_STEP
     return [
