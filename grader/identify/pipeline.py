@@ -23,7 +23,9 @@ from grader.identify.friction import FrictionFit
 from grader.identify.oscillation import OscillationFit
 from grader.identify.pot import PotCalibration
 from grader.model.linear import plant_coeffs
-from grader.model.params import RigParams
+from grader.model import zloop
+from grader.model.params import Controller, RigParams
+from grader.model.rig_setup import DAC_LIMIT
 
 
 @dataclass(frozen=True)
@@ -36,7 +38,7 @@ class Identification:
     kp_run: float
     dataset: Dataset
     #: damping [lbf·s/in] with which the model's poles are placed at the instability run's oscillation
-    #: (viscous B plus Coulomb friction's equivalent, :func:`coulomb_damping`)
+    #: (the viscous B: Coulomb friction's effect is taken out of the fitted growth rate)
     match_B: float = 0.0
 
 
@@ -58,25 +60,35 @@ def _instability_run(dataset: Dataset) -> Run:
     return runs[0]
 
 
-def coulomb_damping(Fc: float, amplitude: float, omega: float) -> float:
-    """Viscous damping [lbf·s/in] equivalent to Coulomb friction ``Fc`` [lbf] over an oscillation of
-    ``amplitude`` [in] at ``omega`` [rad/s] (describing function: 4·Fc/(π·a·ω), the same energy lost
-    per cycle). The instability run's oscillation is small, so friction damps it noticeably: the
-    model's poles are placed with it, and the model keeps the viscous B only."""
-    return 4.0 * Fc / (np.pi * amplitude * omega) if amplitude > 0 and omega > 0 else 0.0
+def _coefficient_model(g: Mapping[str, float], feedback: str, kp: float, B: float, omega: float, Kq: float,
+                       Kpot: float) -> RigParams:
+    """The students' model: β/Vt and Kce by coefficient matching at ``omega`` [rad/s] and gain ``kp``."""
+    bv, kce = coefficient_match(omega=omega, kp_crit=kp, A=g["A"], M=g["M"], Kamp=g["Kamp"], Kq=Kq,
+                                k_fb=Kpot if feedback == "volts" else 1.0, B=B)
+    return RigParams(A=g["A"], M=g["M"], Kamp=g["Kamp"], Kq=Kq, Kpot=Kpot, beta_over_Vt=bv, Kce=kce, B=B,
+                     sample_time=g["sample_time"], feedback=feedback, supply_pressure=g["supply_pressure"], i_max=g["i_max"])
 
 
-def _placed(students: RigParams, kp: float, osc: OscillationFit, b_osc: float) -> tuple[RigParams, float]:
-    """The model with its poles placed at the measured oscillation, and the damping used: with
-    friction's equivalent damping ``b_osc``, or, where no model matches with it (an oscillation
-    shaped by valve saturation rather than friction), with the viscous B alone."""
-    try:
-        placed = match_sampled_poles(students.with_(B=b_osc), kp=kp, sigma=osc.sigma_.value, omega=osc.omega_.value)
-        return placed.with_(B=students.B), b_osc
-    except IdentificationError:
-        if b_osc == students.B:
-            raise
-        return match_sampled_poles(students, kp=kp, sigma=osc.sigma_.value, omega=osc.omega_.value), students.B
+def friction_decrement(p: RigParams, kp: float, Fc: float, omega: float) -> float:
+    """Rate [in/s] at which Coulomb friction ``Fc`` [lbf] slows the growth of the P loop's oscillation
+    amplitude at ``omega`` [rad/s]: its describing function is a damping 4·Fc/(π·a·ω) at amplitude a,
+    which lowers the growth rate by ∂σ/∂B times it, so da/dt = σ·a − c with c = −∂σ/∂B·4·Fc/(π·ω)
+    (∂σ/∂B of the sampled loop ``p`` at ``kp``, by a finite difference)."""
+    if Fc <= 0 or omega <= 0:
+        return 0.0
+
+    def sigma(B: float) -> float:
+        s = np.log(np.roots(zloop.closed_loop(p.with_(B=B), Controller(Kp=kp))[1]).astype(complex)) / p.sample_time
+        return float(s[np.argmin(np.abs(s - 1j * omega))].real)
+
+    h = 1e-3 * max(p.M * omega, 1e-6)
+    return max(-(sigma(p.B + h) - sigma(p.B)) / h, 0.0) * 4.0 * Fc / (np.pi * omega)
+
+
+def saturation_amplitude(g: Mapping[str, float], kp: float, k_fb: float) -> float:
+    """Position amplitude [in] at which the P controller's output reaches the DAC limit or the
+    amplifier's ``i_max``: the oscillation stops growing freely there."""
+    return min(DAC_LIMIT, g["i_max"] / g["Kamp"]) / (kp * k_fb)
 
 
 def identify(dataset: Dataset) -> Identification:
@@ -88,29 +100,28 @@ def identify(dataset: Dataset) -> Identification:
     flow = FlowGainFit(Kamp=g["Kamp"]).fit(dataset.flow_test["input"], dataset.flow_test["flow"])
     fric = FrictionFit().fit(dataset.friction["speed"], dataset.friction["force"])
     run = _instability_run(dataset)
-    osc = OscillationFit().fit(run.t, run.y, start=command_start(run))
     kp = run.controller.Kp
     volts = dataset.manifest.feedback == "volts"
     B_model = 0.0 if fric.B_is_zero_ else fric.B_.value
+    a_sat = saturation_amplitude(g, kp, pot.Kpot_.value if volts else 1.0)
+    first = OscillationFit(a_sat).fit(run.t, run.y, start=command_start(run))
+    rough = _coefficient_model(g, dataset.manifest.feedback, kp, B_model, first.omega_.value, flow.Kq_.value, pot.Kpot_.value)
+    c = friction_decrement(rough, kp, fric.Fc_.value, first.omega_.value)
+    osc = OscillationFit(a_sat).fit(run.t, run.y, start=command_start(run), decrement=c) if c > 0 else first
     x = {"omega": osc.omega_.value, "Kq": flow.Kq_.value, "Kpot": pot.Kpot_.value}
     se = {"omega": osc.omega_.se, "Kq": flow.Kq_.se, "Kpot": pot.Kpot_.se if volts else 0.0}
 
     def match(v: Mapping[str, float]) -> tuple[float, ...]:
-        k_fb = v["Kpot"] if volts else 1.0
-        bv, kce = coefficient_match(omega=v["omega"], kp_crit=kp, A=g["A"], M=g["M"], Kamp=g["Kamp"], Kq=v["Kq"],
-                                    k_fb=k_fb, B=B_model)
-        p = RigParams(A=g["A"], M=g["M"], Kamp=g["Kamp"], Kq=v["Kq"], Kpot=v["Kpot"], beta_over_Vt=bv, Kce=kce, B=B_model)
+        p = _coefficient_model(g, dataset.manifest.feedback, kp, B_model, v["omega"], v["Kq"], v["Kpot"])
         a2, a1, b0 = plant_coeffs(p)
-        return bv, kce, a2, a1, g["Kamp"] * k_fb * b0
+        return p.beta_over_Vt, p.Kce, a2, a1, g["Kamp"] * (v["Kpot"] if volts else 1.0) * b0
 
     (bv, kce, a2, a1, a0k), ses = propagate(match, x, se)
     inputs = {"omega_crit [rad/s]": x["omega"], "Kp_crit": kp, "Kq [in^3/s/mA]": x["Kq"], "Kpot [V/in]": x["Kpot"],
               "B [lbf*s/in]": B_model, "A [in^2]": g["A"], "M [lbf*s^2/in]": g["M"], "Kamp [mA/V]": g["Kamp"]}
     matching = "coefficient matching at the limit of stability"
-    students = RigParams(A=g["A"], M=g["M"], Kamp=g["Kamp"], Kq=x["Kq"], Kpot=x["Kpot"], beta_over_Vt=bv, Kce=kce,
-                         B=B_model, sample_time=g["sample_time"], feedback=dataset.manifest.feedback,
-                         supply_pressure=g["supply_pressure"], i_max=g["i_max"])
-    model, b_osc = _placed(students, kp, osc, B_model + coulomb_damping(fric.Fc_.value, osc.amplitude_, osc.omega_.value))
+    students = _coefficient_model(g, dataset.manifest.feedback, kp, B_model, x["omega"], x["Kq"], x["Kpot"])
+    model = match_sampled_poles(students, kp=kp, sigma=osc.sigma_.value, omega=osc.omega_.value)
     est = {
         "Kpot": pot.Kpot_,
         "Kq": flow.Kq_,
@@ -129,4 +140,4 @@ def identify(dataset: Dataset) -> Identification:
                                         f"constant term per unit Kp, Kamp·{'Kpot·' if volts else ''}4β/Vt·Kq·A/M", inputs),
     }
     return Identification(estimates=est, params=model, students_params=students, kp_run=kp, dataset=dataset,
-                          match_B=b_osc)
+                          match_B=B_model)
