@@ -95,13 +95,16 @@ def correct_submission(key: dict[str, Any], station: str) -> dict[str, Any]:
     answers: dict[str, Any] = dict(TF)
     for name in ANSWERED:
         e = q[name]
-        if e.get("status") == "not_reachable":
-            answers[name] = "not reachable"
+        if e.get("status", "ok") != "ok":
+            answers[name] = e["status"].replace("_", " ")
         else:
             answers[name] = e["value"] if e["unit"] == "dimensionless" else f"{e['value']:.6g} {e['unit']}"
-    answers["closed_loop_poles"] = [{"Kp": r["Kp"], "Ki": r["Ki"], "Kd": r["Kd"],
-                                     "poles": [f"{re:.6g}{im:+.6g}j" for re, im in r["poles"]]}
-                                    for r in q["closed_loop_poles"]["value"]]
+    if q["closed_loop_poles"].get("status", "ok") == "ok":
+        answers["closed_loop_poles"] = [{"Kp": r["Kp"], "Ki": r["Ki"], "Kd": r["Kd"],
+                                         "poles": [f"{re:.6g}{im:+.6g}j" for re, im in r["poles"]]}
+                                        for r in q["closed_loop_poles"]["value"]]
+    else:
+        answers["closed_loop_poles"] = q["closed_loop_poles"]["status"].replace("_", " ")
     return {"submission_id": f"{station}-correct", "students": [{"name": "A Student"}], "station": station,
             "answers": answers}
 
@@ -151,8 +154,10 @@ def one_rig(k: int, seed: int, diagnose: bool) -> Outcome:
             out.exits["key"] = _verb(["key", str(ds), "-o", str(key_file)])
             key = json.loads(key_file.read_text())
             truth = st.params()
-            out.errors = {n: abs(key["quantities"][n]["value"] / getattr(truth, TRUTH_OF[n]) - 1) for n in BOUNDS}
-            out.not_reachable = [n for n, e in key["quantities"].items() if e.get("status") == "not_reachable"]
+            out.errors = {n: abs(key["quantities"][n]["value"] / getattr(truth, TRUTH_OF[n]) - 1) for n in BOUNDS
+                          if key["quantities"][n]["value"] is not None}
+            out.not_reachable = [f"{n} ({e['status']})" if e["status"] != "not_reachable" else n
+                                 for n, e in key["quantities"].items() if e.get("status", "ok") != "ok"]
             sub = root / "sub.json"
             sub.write_text(json.dumps(correct_submission(key, st.station)))
             where = ["--datasets", str(root / "datasets"), "--keys", str(root / "keys")]
@@ -186,7 +191,7 @@ def report(outcomes: list[Outcome], wall: float) -> str:
     for o in outcomes:
         for item in o.not_reachable:
             nr[item] = nr.get(item, 0) + 1
-    lines.append("  not reachable in keys: " + (", ".join(f"{k} {v}" for k, v in sorted(nr.items())) or "none"))
+    lines.append("  not reachable (or not identifiable) in keys: " + (", ".join(f"{k} {v}" for k, v in sorted(nr.items())) or "none"))
     for o in outcomes:
         if not o.recovered:
             lines.append(f"  FAIL {o.station} ({o.feedback}): exits {o.exits} {o.failure} "

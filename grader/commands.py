@@ -15,8 +15,8 @@ if TYPE_CHECKING:  # heavy modules are imported inside the handlers (fast start-
 
 
 def key_table(key: Key, *, title: str) -> Table:
-    """A readable table of a key's scalar quantities (course units); a not-reachable item
-    says so (its reason is in :func:`key_notes`), a value with a note is starred."""
+    """A readable table of a key's scalar quantities (course units); a not-reachable or
+    not-identifiable item says so (its reason is in :func:`key_notes`), a value with a note is starred."""
     from rich.markup import escape
     from rich.table import Table
 
@@ -27,7 +27,7 @@ def key_table(key: Key, *, title: str) -> Table:
         table.add_column(col, no_wrap=True)
     for name, e in key.quantities.items():
         if not e.reachable:
-            table.add_row(f"{name} *", "not reachable", "—")
+            table.add_row(f"{name} *", e.status.replace("_", " "), "—")
         elif e.interval is None:
             table.add_row(name, f"per run ({len(e.value)} runs)", "see key file")
         else:
@@ -37,9 +37,13 @@ def key_table(key: Key, *, title: str) -> Table:
 
 
 def key_notes(key: Key) -> list[str]:
-    """One line per starred item of :func:`key_table`: why it is not reachable, or its note."""
-    return [f"* {name}: {e.reason if not e.reachable else e.note}" for name, e in key.quantities.items()
-            if not e.reachable or e.note]
+    """One line per reason or note of the starred items of :func:`key_table` (why an item is not
+    reachable or not identifiable, or its note), the items sharing it named together."""
+    shared: dict[str, list[str]] = {}
+    for name, e in key.quantities.items():
+        if not e.reachable or e.note:
+            shared.setdefault(str(e.reason if not e.reachable else e.note), []).append(name)
+    return [f"* {', '.join(names)}: {why}" for why, names in shared.items()]
 
 
 def _key(args: argparse.Namespace) -> int:

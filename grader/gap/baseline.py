@@ -62,11 +62,14 @@ def _given_params(ds: Dataset, Kq: float, Kpot: float, bv: float, kce: float) ->
                      supply_pressure=g["supply_pressure"], i_max=g["i_max"])
 
 
-def from_key(path: str | Path, ds: Dataset) -> Baseline:
-    """The key's model at the manifest's sample time and limits."""
+def from_key(path: str | Path, ds: Dataset) -> Baseline | str:
+    """The key's model at the manifest's sample time and limits; or, when the key's data gave no
+    model (β/Vt and Kce null), why not."""
     key = read_key(path)
     if key.feedback != ds.manifest.feedback:
         raise DiagnosisError(f"{Path(path).name}: the key uses '{key.feedback}' feedback but the dataset '{ds.manifest.feedback}'")
+    if not key.identified:
+        return f"the key {Path(path).name} has no model ({key.quantities['Kce'].reason})"
     g = ds.given
     p = key.params().with_(sample_time=g["sample_time"], i_max=g["i_max"], supply_pressure=g["supply_pressure"])
     return Baseline(p, "key", f"answer key {Path(path).name} (station {key.station})")
@@ -145,14 +148,20 @@ def from_runs(ds: Dataset, runs: Sequence[GapRun], implied_kfb: float | None) ->
 
 def choose(ds: Dataset, runs: Sequence[GapRun], *, key: str | Path | None, implied_kfb: float | None) -> Baseline:
     """The baseline by preference: key, the students' identification, the runs."""
+    why_not = None
     if key is not None:
-        return from_key(key, ds)
-    if ds.calibration is not None and ds.flow_test is not None and ds.friction is not None:
+        keyed = from_key(key, ds)
+        if isinstance(keyed, Baseline):
+            return keyed
+        why_not = keyed
+    elif ds.calibration is not None and ds.flow_test is not None and ds.friction is not None:
         try:
             ident = identify(ds)
-            return Baseline(ident.params.with_(sample_time=ds.given["sample_time"]), "identified",
-                            "the students' identification (flow test, calibration, friction data, instability run)")
+            if ident.params is not None:
+                return Baseline(ident.params.with_(sample_time=ds.given["sample_time"]), "identified",
+                                "the students' identification (flow test, calibration, friction data, instability run)")
+            why_not = f"students' identification gives no model: {ident.estimates['Kce'].reason}"
         except GraderError as exc:  # e.g. a friction test whose slope B is clearly negative
-            base = from_runs(ds, runs, implied_kfb)
-            return Baseline(base.params, base.source, base.method, (f"students' identification failed: {exc}", *base.notes))
-    return from_runs(ds, runs, implied_kfb)
+            why_not = f"students' identification failed: {exc}"
+    base = from_runs(ds, runs, implied_kfb)
+    return base if why_not is None else Baseline(base.params, base.source, base.method, (why_not, *base.notes))

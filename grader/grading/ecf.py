@@ -97,5 +97,5 @@ def recompute(key_name: str, kc: KeyContext, own: Mapping[str, float]) -> Any:
         return None
     try:
         return spec.compute(kc, {k: v for k, v in own.items() if k in spec.inputs})
-    except (GraderError, ArithmeticError, ValueError):
+    except (GraderError, ArithmeticError, ValueError, TypeError):  # TypeError: a null key value (not identifiable)
         return None

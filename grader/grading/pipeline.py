@@ -152,7 +152,7 @@ def rig_prepass(subs: list[Read], keys: list[KeyContext | str | None], opts: Gra
                 ans = read_design(sub.answers[item], item=item, gain_unit=kc.unit("Kp_crit"))
             except (AnswerError, GraderError, TypeError):
                 continue
-            if zloop.is_stable(kc.params(), ans.gains):
+            if kc.key.identified and zloop.is_stable(kc.params(), ans.gains):
                 cases.append(RigCase(kc.key.station, item, ans.gains))
         unique = sorted(set(cases), key=lambda c: (c.station, c.gains.Kp, c.gains.Ki, c.gains.Kd))
         threshold = quantity_to_float(spec.limit_cycle, "in")

@@ -16,6 +16,7 @@ from grader.grading.designs import ModelVerdict, evaluate_design
 from grader.grading.mistakes import wrong_value
 from grader.grading.results import READ_STATUSES, ItemResult
 from grader.grading.rubric import RubricItem
+from grader.grading.unreachable import says_not_reachable
 from grader.grading.units_diagnosis import slip_candidates
 from grader.units import quantity_to_float
 
@@ -73,11 +74,17 @@ def check_poles(name: str, raw: Any, env: CheckEnv, done: Mapping[str, ItemResul
     if is_blank(raw):
         return result(name, item, "missing", 0.0, fb.missing(name))
     assert env.kc is not None
+    kname = env.rubric.key_name(name)
+    entry = env.kc.key.quantities[kname]
+    if not entry.reachable:  # the key has no poles (e.g. the data give no model)
+        if says_not_reachable(raw):
+            return result(name, item, "correct", 1.0, fb.correct(name, entry.status.replace("_", " ")))
+        return result(name, item, "incorrect", 0.0, fb.number_not_reachable(name, "these poles", entry.reason if env.reveal else None),
+                      detail={"key_status": entry.status})
     try:
         answer = read_poles(raw, limits=env.limits)
     except AnswerError as exc:
         return result(name, item, "invalid", 0.0, fb.invalid(name, str(exc)), detail={"error": str(exc)})
-    kname = env.rubric.key_name(name)
     ref = key_runs(env.kc.value(kname))
     rel = item.tolerance.relative or 0.0
     absolute = float(item.tolerance.absolute or 0.0) if not isinstance(item.tolerance.absolute, str) else \
@@ -143,6 +150,9 @@ def check_design(name: str, raw: Any, env: CheckEnv) -> ItemResult:
         answer = read_design(raw, item=name, gain_unit=env.kc.unit("Kp_crit"))
     except AnswerError as exc:
         return result(name, item, "invalid", 0.0, fb.invalid(name, str(exc)), detail={"error": str(exc)})
+    if not env.kc.key.identified:  # no model to check the design on
+        why = f"cannot be checked: your station's data give no model ({env.kc.key.quantities['Kce'].reason})"
+        return result(name, item, "invalid", 0.0, f"{fb.name(name)}: {why}.", detail={"error": why})
     ramp = env.kc.key.quantities.get("ramp_ess_P")
     rate = float(ramp.inputs.get("ramp rate [in/s]", 1.0)) if ramp else 1.0
     m = evaluate_design(name, answer, env.kc.params(), spec, ramp_rate=rate)

@@ -1,7 +1,8 @@
 """Answers about values a rig may not have: "not reachable" is an answer, not a blank.
 
 A key item with ``status: not_reachable`` (e.g. ``Kp_25_overshoot`` of a lightly damped
-rig that turns unstable before it overshoots 25 %) is answered correctly by one of
+rig that turns unstable before it overshoots 25 %) or ``not_identifiable`` (e.g. ``Kce`` from an
+instability run that does not oscillate) is answered correctly by one of
 :data:`NOT_REACHABLE_WORDS` (case-insensitive; ``-`` or ``_`` may stand for the space).
 A number for such an item is incorrect, unless the student's own upstream values do give
 that number (error carried forward); a not-reachable answer for an item the rig does have
@@ -21,7 +22,7 @@ from grader.grading.checks import CheckEnv, result
 from grader.grading.results import READ_STATUSES, ItemResult
 
 #: the accepted ways to say "this value does not exist for the rig" (compared lower-cased)
-NOT_REACHABLE_WORDS = ("not reachable", "unreachable", "none", "n/a", "na")
+NOT_REACHABLE_WORDS = ("not reachable", "unreachable", "none", "n/a", "na", "not identifiable", "unidentifiable")
 _SEPARATORS = re.compile(r"[\s_\-]+")
 
 
@@ -48,7 +49,7 @@ def check_not_reachable(name: str, raw: Any, env: CheckEnv, done: Mapping[str, I
     entry = env.kc.key.quantities[kname]
     detail = {"key_status": entry.status, "answer": "not reachable"}
     if not entry.reachable:
-        return result(name, item, "correct", 1.0, fb.correct(name, "not reachable"), detail=detail)
+        return result(name, item, "correct", 1.0, fb.correct(name, entry.status.replace("_", " ")), detail=detail)
     wrong, own = _own_upstream(name, env, done)
     target = ecf.recompute(kname, env.kc, own) if wrong else None
     if isinstance(target, float) and math.isnan(target):

@@ -2,7 +2,9 @@
 delta-method propagation used to carry uncertainty from measurements to results.
 
 An Estimate may be ``not_reachable`` (the identified rig has no such value: ``value`` is
-NaN and ``reason`` says why), or carry a ``note`` (e.g. clipped at a physical bound).
+NaN and ``reason`` says why), ``not_identifiable`` (the data cannot give it, e.g. an instability
+run that does not oscillate: also NaN with a reason), or carry a ``note`` (e.g. clipped at a
+physical bound).
 """
 
 from __future__ import annotations
@@ -20,7 +22,8 @@ Z95 = float(stats.norm.ppf(0.975))
 @dataclass(frozen=True)
 class Estimate:
     """``value`` [unit] with standard error ``se`` and 95 % ``interval``; ``status``
-    ``not_reachable`` with a ``reason`` when the rig has no such value."""
+    ``not_reachable`` (the rig has no such value) or ``not_identifiable`` (the data cannot give
+    it), with a ``reason``."""
 
     value: float
     unit: str
@@ -28,7 +31,7 @@ class Estimate:
     method: str
     inputs: Mapping[str, float | str] = field(default_factory=dict)
     dof: float = np.inf
-    status: Literal["ok", "not_reachable"] = "ok"
+    status: Literal["ok", "not_reachable", "not_identifiable"] = "ok"
     reason: str | None = None
     note: str | None = None
     fit_interval: tuple[float, float] | None = None
@@ -52,6 +55,11 @@ class Estimate:
 def not_reachable(unit: str, method: str, reason: str, inputs: Mapping[str, float | str] | None = None) -> Estimate:
     """An Estimate for a value the identified rig does not have."""
     return Estimate(float("nan"), unit, float("nan"), method, dict(inputs or {}), status="not_reachable", reason=reason)
+
+
+def not_identifiable(unit: str, method: str, reason: str) -> Estimate:
+    """An Estimate the dataset cannot give (``reason`` says why)."""
+    return Estimate(float("nan"), unit, float("nan"), method, {}, status="not_identifiable", reason=reason)
 
 
 def propagate(

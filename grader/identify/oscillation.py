@@ -11,9 +11,10 @@ constant ``decrement`` c [in/s] off the amplitude's growth (describing function:
 equivalent damping 4·Fc/(π·a·ω) slows the growth by a rate ∝ 1/a). With c from the friction
 test, σ is the linear loop's growth rate at every amplitude the window spans.
 
-A run whose oscillation dies out, or stays within a few ADC counts (a friction or
-quantisation limit cycle, not the loop's critical oscillation), is flagged: ``sustained_``
-is False and ``why_not_`` says why.
+The window also ends where friction stops the oscillation (its envelope fades): a loop just
+past the critical gain may grow at large amplitude yet decay at small. A run without
+:data:`MIN_CYCLES` cycles above an ADC count (a friction or quantisation limit cycle, or no
+oscillation) is flagged: ``usable_`` is False, ``why_not_`` says why and nothing else is learned.
 """
 
 from __future__ import annotations
@@ -27,10 +28,12 @@ from grader.errors import IdentificationError
 from grader.identify.estimate import Estimate
 
 Array = NDArray[np.float64]
-#: a sustained oscillation ends at least this many ADC counts and this share of the step in amplitude
-MIN_COUNTS, MIN_STEP_SHARE = 3.0, 0.01
-#: the free-growth window ends where the envelope reaches this share of the saturation amplitude
-SATURATION_SHARE = 0.8
+#: an oscillation counts while its amplitude is at least this many recording steps (ADC counts) and
+#: this share of the step command (below: a friction or quantisation limit cycle)
+MIN_COUNTS, MIN_STEP_SHARE = 1.0, 0.005
+#: the free-growth window ends where the envelope reaches this share of the saturation amplitude,
+#: or falls to this share of its starting value; it must span :data:`MIN_CYCLES` cycles
+SATURATION_SHARE, FADED, MIN_CYCLES = 0.8, 0.25, 8
 
 
 def _envelope(t: Array, x: Array, f0: float) -> Array:
@@ -42,13 +45,21 @@ def _envelope(t: Array, x: Array, f0: float) -> Array:
     return np.abs(signal.hilbert(signal.filtfilt(b, a, x)))
 
 
-def _free_window(t: Array, env: Array, f0: float, a_sat: float) -> NDArray[np.bool_]:
-    """From a quarter second after the start until the envelope first reaches 90 % of its peak
-    or :data:`SATURATION_SHARE` of the saturation amplitude ``a_sat`` [in] (at least 8 cycles)."""
+def _free_window(t: Array, env: Array, f0: float, a_sat: float, floor: float) -> tuple[NDArray[np.bool_], bool]:
+    """(window, usable): from a quarter second after the start until the envelope first reaches
+    90 % of its peak or :data:`SATURATION_SHARE` of the saturation amplitude ``a_sat`` [in] (at least
+    :data:`MIN_CYCLES` cycles), or fades below a quarter of its starting value or the
+    ``floor`` [in] (an oscillation that friction stops: usable only after that many cycles)."""
     start = t[0] + 0.25 * (t[-1] - t[0]) if t[-1] - t[0] < 1.0 else t[0] + 0.25
-    past = np.flatnonzero((env >= min(0.9 * env.max(), SATURATION_SHARE * a_sat)) & (t > start))
-    stop = max(t[past[0]] if past.size else t[-1], start + 8.0 / f0)
-    return (t >= start) & (t <= stop)
+    after = t > start
+    env0 = float(env[np.argmax(after)])
+    grown = np.flatnonzero(after & (env >= min(0.9 * env.max(), SATURATION_SHARE * a_sat)))
+    faded = np.flatnonzero(after & (env < max(FADED * env0, floor)))
+    t_fade = t[faded[0]] if faded.size else np.inf
+    if t_fade < (t[grown[0]] if grown.size else np.inf):
+        return (t >= start) & (t <= t_fade), (t_fade - start) * f0 >= MIN_CYCLES
+    stop = max(t[grown[0]] if grown.size else t[-1], start + MIN_CYCLES / f0)
+    return (t >= start) & (t <= min(stop, t_fade)), True
 
 
 def _fft_peak(t: Array, x: Array) -> float:
@@ -84,7 +95,7 @@ def envelope_factor(sigma: float, decrement: float, a0: float, tau: Array) -> Ar
 class OscillationFit:
     """Learned: ``omega_`` [rad/s] and ``sigma_`` [1/s] (the linear growth rate) as Estimates,
     ``amplitude_`` [in] at the middle of ``window_`` (t0, t1) [s], the fit's window, and
-    ``sustained_`` / ``why_not_`` (see the module docstring). ``a_sat`` [in] is the amplitude
+    ``usable_`` / ``why_not_`` (see the module docstring). ``a_sat`` [in] is the amplitude
     at which the valve or DAC saturates (the window ends before it)."""
 
     def __init__(self, a_sat: float = np.inf) -> None:
@@ -94,6 +105,7 @@ class OscillationFit:
         """Fit the run; ``decrement`` [in/s] is Coulomb friction's take off the amplitude's growth."""
         t, y = np.asarray(t, float), np.asarray(y, float)
         sel = t >= start
+        before = float(np.mean(y[~sel])) if np.any(~sel) else float(y[0])
         t, y = t[sel], y[sel]
         if t.size < 50:
             raise IdentificationError("instability run: fewer than 50 samples after the command starts")
@@ -102,9 +114,15 @@ class OscillationFit:
         if f0 <= 0 or not np.isfinite(f0):
             raise IdentificationError("instability run: no oscillation found")
         env = _envelope(t, x, f0)
-        self._judge(t, y, env)
-        win = _free_window(t, env, f0, self.a_sat)
+        floor = max(MIN_COUNTS * _quantum(y), MIN_STEP_SHARE * abs(float(np.median(y)) - before))
+        win, self.usable_ = _free_window(t, env, f0, self.a_sat, floor)
         tw, yw = t[win], y[win]
+        cycles = (tw[-1] - tw[0]) * f0 if tw.size else 0.0
+        self.why_not_ = None if self.usable_ else (
+            f"the instability run shows {cycles:.0f} cycles of oscillation above {floor:.2g} in (an ADC count or "
+            f"0.5 % of the step) before it dies out, fewer than {MIN_CYCLES}: no critical oscillation to read")
+        if not self.usable_:
+            return self
         tau = tw - float(tw.mean())
         best = self._least_squares(tau, yw, 2 * np.pi * f0, decrement)
         dof = tw.size - 6
@@ -137,20 +155,3 @@ class OscillationFit:
                 best = res
         assert best is not None
         return best
-
-    def _judge(self, t: Array, y: Array, env: Array) -> None:
-        """Whether the oscillation is sustained: it does not die out after the step's transient and
-        ends above a few ADC counts and 1 % of the step (else a friction or quantisation limit cycle)."""
-        t0 = t[0] + min(0.25, 0.25 * (t[-1] - t[0]))
-        early = float(np.median(env[(t >= t0) & (t < t0 + 0.1)])) if np.any((t >= t0) & (t < t0 + 0.1)) else float(env[0])
-        late = float(np.median(env[t >= t[-1] - min(0.2, 0.2 * (t[-1] - t[0]))]))
-        floor = max(MIN_COUNTS * _quantum(y), MIN_STEP_SHARE * float(np.ptp(y)))
-        self.sustained_, self.why_not_ = True, None
-        if late < floor:
-            self.sustained_ = False
-            self.why_not_ = (f"the instability run's oscillation ends at {late:.2g} in, within a few ADC counts or 1 % of "
-                             f"the step: a friction or quantisation limit cycle, not the loop's critical oscillation")
-        elif late < 0.5 * early:
-            self.sustained_ = False
-            self.why_not_ = (f"the instability run's oscillation dies out ({early:.2g} in falls to {late:.2g} in): "
-                             f"the loop is stable at the run's gain")

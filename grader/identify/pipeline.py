@@ -17,7 +17,7 @@ import numpy as np
 from grader.datasets import Dataset, Run
 from grader.errors import IdentificationError
 from grader.identify.critical import coefficient_match, match_sampled_poles
-from grader.identify.estimate import Estimate, propagate
+from grader.identify.estimate import Estimate, not_identifiable, propagate
 from grader.identify.flow import FlowGainFit
 from grader.identify.friction import FrictionFit
 from grader.identify.oscillation import OscillationFit
@@ -33,8 +33,10 @@ class Identification:
     """Identified values (``estimates``) and the refined linear model (``params``)."""
 
     estimates: Mapping[str, Estimate]
-    params: RigParams
-    students_params: RigParams
+    #: None (and the instability items ``not_identifiable``) when the instability run shows no
+    #: sustained critical oscillation of the loop
+    params: RigParams | None
+    students_params: RigParams | None
     kp_run: float
     dataset: Dataset
     #: damping [lbf·s/in] with which the model's poles are placed at the instability run's oscillation
@@ -91,6 +93,11 @@ def saturation_amplitude(g: Mapping[str, float], kp: float, k_fb: float) -> floa
     return min(DAC_LIMIT, g["i_max"] / g["Kamp"]) / (kp * k_fb)
 
 
+#: the items the instability run gives (unit, what): not identifiable without its critical oscillation
+INSTABILITY_ITEMS = {"omega_crit": "rad/s", "growth_rate": "1/s", "Kp_crit": None, "beta_over_Vt": "psi/in**3",
+                     "Kce": "in**3/s/psi", "char_poly_a2": "1/s", "char_poly_a1": "1/s**2", "char_poly_a0_per_Kp": None}
+
+
 def identify(dataset: Dataset) -> Identification:
     """Run the identification procedure on ``dataset``."""
     for what in ("calibration", "flow_test", "friction"):
@@ -99,20 +106,41 @@ def identify(dataset: Dataset) -> Identification:
     pot = PotCalibration().fit(dataset.calibration["position"], dataset.calibration["voltage"])
     flow = FlowGainFit(Kamp=g["Kamp"]).fit(dataset.flow_test["input"], dataset.flow_test["flow"])
     fric = FrictionFit().fit(dataset.friction["speed"], dataset.friction["force"])
+    static = {"Kpot": pot.Kpot_, "Kq": flow.Kq_, "leakage": flow.leakage_, "B": fric.B_, "Fc": fric.Fc_}
     run = _instability_run(dataset)
-    kp = run.controller.Kp
-    volts = dataset.manifest.feedback == "volts"
     B_model = 0.0 if fric.B_is_zero_ else fric.B_.value
-    a_sat = saturation_amplitude(g, kp, pot.Kpot_.value if volts else 1.0)
+    try:
+        est, model, students = _from_oscillation(dataset, run, static, B_model)
+    except IdentificationError as exc:
+        volts = dataset.manifest.feedback == "volts"
+        units = {**INSTABILITY_ITEMS, "Kp_crit": "dimensionless" if volts else "V/in",
+                 "char_poly_a0_per_Kp": "1/s**3" if volts else "in/V/s**3"}
+        reason = str(exc).removeprefix("instability run: ")
+        est = {name: not_identifiable(unit, f"from the instability run {run.name}", reason) for name, unit in units.items()}
+        model = students = None
+    return Identification(estimates={**static, **est}, params=model, students_params=students,
+                          kp_run=run.controller.Kp, dataset=dataset, match_B=B_model)
+
+
+def _from_oscillation(dataset: Dataset, run: Run, static: Mapping[str, Estimate],
+                      B_model: float) -> tuple[dict[str, Estimate], RigParams, RigParams]:
+    """The instability run's estimates, the refined model and the students' model (IdentificationError
+    when the run shows no sustained oscillation of the loop or no model matches it)."""
+    g, fb = dataset.given, dataset.manifest.feedback
+    kp, volts = run.controller.Kp, fb == "volts"
+    Kq, Kpot = static["Kq"], static["Kpot"]
+    a_sat = saturation_amplitude(g, kp, Kpot.value if volts else 1.0)
     first = OscillationFit(a_sat).fit(run.t, run.y, start=command_start(run))
-    rough = _coefficient_model(g, dataset.manifest.feedback, kp, B_model, first.omega_.value, flow.Kq_.value, pot.Kpot_.value)
-    c = friction_decrement(rough, kp, fric.Fc_.value, first.omega_.value)
+    if not first.usable_:
+        raise IdentificationError(f"{first.why_not_}; raise Kp until the oscillation grows")
+    rough = _coefficient_model(g, fb, kp, B_model, first.omega_.value, Kq.value, Kpot.value)
+    c = friction_decrement(rough, kp, static["Fc"].value, first.omega_.value)
     osc = OscillationFit(a_sat).fit(run.t, run.y, start=command_start(run), decrement=c) if c > 0 else first
-    x = {"omega": osc.omega_.value, "Kq": flow.Kq_.value, "Kpot": pot.Kpot_.value}
-    se = {"omega": osc.omega_.se, "Kq": flow.Kq_.se, "Kpot": pot.Kpot_.se if volts else 0.0}
+    x = {"omega": osc.omega_.value, "Kq": Kq.value, "Kpot": Kpot.value}
+    se = {"omega": osc.omega_.se, "Kq": Kq.se, "Kpot": Kpot.se if volts else 0.0}
 
     def match(v: Mapping[str, float]) -> tuple[float, ...]:
-        p = _coefficient_model(g, dataset.manifest.feedback, kp, B_model, v["omega"], v["Kq"], v["Kpot"])
+        p = _coefficient_model(g, fb, kp, B_model, v["omega"], v["Kq"], v["Kpot"])
         a2, a1, b0 = plant_coeffs(p)
         return p.beta_over_Vt, p.Kce, a2, a1, g["Kamp"] * (v["Kpot"] if volts else 1.0) * b0
 
@@ -120,14 +148,9 @@ def identify(dataset: Dataset) -> Identification:
     inputs = {"omega_crit [rad/s]": x["omega"], "Kp_crit": kp, "Kq [in^3/s/mA]": x["Kq"], "Kpot [V/in]": x["Kpot"],
               "B [lbf*s/in]": B_model, "A [in^2]": g["A"], "M [lbf*s^2/in]": g["M"], "Kamp [mA/V]": g["Kamp"]}
     matching = "coefficient matching at the limit of stability"
-    students = _coefficient_model(g, dataset.manifest.feedback, kp, B_model, x["omega"], x["Kq"], x["Kpot"])
+    students = _coefficient_model(g, fb, kp, B_model, x["omega"], x["Kq"], x["Kpot"])
     model = match_sampled_poles(students, kp=kp, sigma=osc.sigma_.value, omega=osc.omega_.value)
     est = {
-        "Kpot": pot.Kpot_,
-        "Kq": flow.Kq_,
-        "leakage": flow.leakage_,
-        "B": fric.B_,
-        "Fc": fric.Fc_,
         "omega_crit": osc.omega_,
         "growth_rate": osc.sigma_,
         "Kp_crit": Estimate(kp, "dimensionless" if volts else "V/in", 0.0, "gain of the instability run (manifest)",
@@ -139,5 +162,4 @@ def identify(dataset: Dataset) -> Identification:
         "char_poly_a0_per_Kp": Estimate(a0k, "1/s**3" if volts else "in/V/s**3", ses[4],
                                         f"constant term per unit Kp, Kamp·{'Kpot·' if volts else ''}4β/Vt·Kq·A/M", inputs),
     }
-    return Identification(estimates=est, params=model, students_params=students, kp_run=kp, dataset=dataset,
-                          match_B=B_model)
+    return est, model, students

@@ -17,7 +17,7 @@ import numpy as np
 
 from grader.datasets import Run
 from grader.identify.critical import match_sampled_poles
-from grader.identify.estimate import Estimate, not_reachable, propagate
+from grader.identify.estimate import Estimate, not_identifiable, not_reachable, propagate
 from grader.identify.pipeline import Identification
 from grader.model import zloop
 from grader.model.linear import ramp_error
@@ -61,11 +61,23 @@ def _ramp_estimate(p: RigParams, run: Run | None, value: float, se: float) -> Es
     return Estimate(value, "in", se, method, inputs)
 
 
+def _not_identifiable(ident: Identification) -> dict[str, Estimate]:
+    """Every prediction ``not_identifiable``, for a dataset whose instability run gives no model."""
+    gain_unit = "dimensionless" if ident.dataset.manifest.feedback == "volts" else "V/in"
+    units = {"beta_over_Vt_model": "psi/in**3", "Kce_model": "in**3/s/psi", "Kp_crit_model": gain_unit,
+             "Kp_no_overshoot": gain_unit, "Kp_25_overshoot": gain_unit, "ramp_ess_P": "in"}
+    reason = f"needs β/Vt and Kce, which the data do not give: {ident.estimates['Kce'].reason}"
+    return {name: not_identifiable(unit, "from the identified model", reason) for name, unit in units.items()}
+
+
 def predictions(ident: Identification) -> dict[str, Estimate]:
-    """Model-refined β/Vt and Kce, the predicted gains, ramp error and characteristic polynomial."""
+    """Model-refined β/Vt and Kce, the predicted gains, ramp error and characteristic polynomial
+    (all ``not_identifiable`` when the dataset gives no model)."""
     ds = ident.dataset
     est = ident.estimates
     base = ident.params
+    if base is None:
+        return _not_identifiable(ident)
     p_ramps = [r for r in ds.runs_of("ramp") if r.controller.Ki == 0 and r.controller.Kd == 0]
     ramp = p_ramps[0] if p_ramps else None
     names = ("omega_crit", "growth_rate", "Kq", "Kpot")
