@@ -42,7 +42,8 @@ def _grade(kc: KeyContext, opts: GradeOptions, answers: dict[str, Any], *, revea
 
 
 @pytest.mark.parametrize("text", ["not reachable", "Not Reachable", "NOT_REACHABLE", "not-reachable", " none ",
-                                  "None", "N/A", "n/a", "na", "unreachable"])
+                                  "None", "N/A", "n/a", "na", "unreachable", "not identifiable", "Not_Identifiable",
+                                  "unidentifiable"])
 def test_accepted_words(text: str) -> None:
     assert says_not_reachable(text)
 
@@ -110,3 +111,43 @@ def test_feedback_on_a_word_for_a_reachable_item(kc: KeyContext, opts: GradeOpti
     text = _grade(kc, opts, {"Kp_25_overshoot": "n/a"}, reveal=reveal)["Kp_25_overshoot"].feedback
     shown = f"{kc.value('Kp_25_overshoot'):.4g}"
     assert "incorrect" in text and (shown in text) == reveal
+
+
+NI_REASON = "the instability run shows 2 cycles of oscillation above 0.002 in before it dies out, fewer than 8"
+NI_ITEMS = ("omega_crit", "growth_rate", "Kp_crit", "beta_over_Vt", "Kce", "char_poly_a2", "char_poly_a1",
+            "char_poly_a0_per_Kp", "beta_over_Vt_model", "Kce_model", "Kp_crit_model", "Kp_no_overshoot",
+            "Kp_25_overshoot", "ramp_ess_P", "closed_loop_poles")
+
+
+@pytest.fixture(scope="module")
+def kc_ni(kc: KeyContext) -> KeyContext:
+    """The default key as `grader key` writes it for data whose instability run does not oscillate."""
+    q = {**kc.key.quantities}
+    for name in NI_ITEMS:
+        old = q[name]
+        q[name] = KeyEntry(value=None, unit=old.unit, interval=None, method=old.method, inputs={},
+                           status="not_identifiable", reason=NI_REASON)
+    model = kc.key.model.model_copy(update={"beta_over_Vt": None, "Kce": None})
+    return KeyContext(key=kc.key.model_copy(update={"quantities": q, "model": model}), dataset=kc.dataset, source="station")
+
+
+# (answers, expected statuses) against a key whose data give no β/Vt and Kce
+NI_CASES = [
+    ({"Kce": "not identifiable", "Kp_crit": "N/A", "closed_loop_poles": "not identifiable"},
+     {"Kce": "correct", "Kp_crit": "correct", "closed_loop_poles": "correct"}),
+    ({"Kce": "7e-4 in^3/s/psi", "Kp_no_overshoot": "20", "closed_loop_poles": [{"Kp": 10, "poles": ["-50+300j", "-50-300j", "-200"]}]},
+     {"Kce": "incorrect", "Kp_no_overshoot": "incorrect", "closed_loop_poles": "incorrect"}),
+    ({"Kq": "0.05 in^3/s/mA", "Kp_no_overshoot": "20", "pd_design": {"Kp": 10, "Kd": 0.05}},
+     {"Kq": "incorrect", "Kp_no_overshoot": "incorrect", "pd_design": "invalid"}),
+]
+
+
+@pytest.mark.parametrize(("answers", "expected"), NI_CASES)
+def test_not_identifiable_items_are_graded_like_not_reachable_ones(kc_ni: KeyContext, opts: GradeOptions,
+                                                                   answers: dict[str, Any], expected: dict[str, str]) -> None:
+    got = _grade(kc_ni, opts, answers)
+    assert {n: got[n].status for n in expected} == expected, {n: got[n].feedback for n in expected}
+    if "pd_design" in expected:
+        assert "cannot be checked" in got["pd_design"].feedback and "no model" in got["pd_design"].feedback
+    if got["Kce"].status == "incorrect":
+        assert NI_REASON in got["Kce"].feedback

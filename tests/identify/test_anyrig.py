@@ -1,6 +1,7 @@
-"""A sample of benchmarks/anyrig_benchmark.py: two rigs of the realistic space (one per feedback
-convention; one lightly damped with no 25 % gain, one heavily damped with a large B), keyed,
-graded with a fully correct submission and checked in process, with the benchmark's recovery bounds."""
+"""A sample of benchmarks/anyrig_benchmark.py: rigs of the realistic space (both feedback
+conventions; one lightly damped with no 25 % gain, one heavily damped with a large B; one whose
+instability run saturates the valve, one whose oscillation friction stops), keyed, graded with a
+fully correct submission and checked in process, with the benchmark's recovery bounds."""
 
 from __future__ import annotations
 
@@ -26,9 +27,13 @@ def _benchmark() -> ModuleType:
 BENCH = _benchmark()
 
 
-@pytest.mark.parametrize(("k", "feedback", "not_reachable"), [(1, "volts", True), (15, "inches", False)])
-def test_rig_is_keyed_graded_and_recovered(k: int, feedback: str, not_reachable: bool) -> None:
-    out = BENCH.one_rig(k, 1, False)
+@pytest.mark.parametrize(("seed", "k", "feedback", "not_reachable"), [
+    (1, 1, "volts", True), (1, 15, "inches", False),
+    (0, 104, "volts", True),  # run at 1.7× critical: grows slowly while friction holds it back, then the valve saturates
+    (0, 53, "volts", False),  # run just past critical: the oscillation grows, then friction stops it
+])
+def test_rig_is_keyed_graded_and_recovered(seed: int, k: int, feedback: str, not_reachable: bool) -> None:
+    out = BENCH.one_rig(k, seed, False)
     assert out.feedback == feedback and not out.failure, out.failure
     assert out.exits == {"key": 0, "grade": 0, "check": 0}
     assert out.not_correct == []

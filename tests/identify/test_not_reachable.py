@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,9 +17,11 @@ import pytest
 
 from grader.cli import main
 from grader.datasets import load
+from grader.errors import GraderError
 from grader.identify import FlowGainFit, FrictionFit
 from grader.keys import build_key, read_key
 from grader.model import zloop
+from grader.model.params import Controller
 from grader.stations import Station
 from grader.synth import make_dataset, paper_runs, station_effects
 
@@ -78,3 +81,29 @@ def test_flow_fit_with_negative_leakage_is_clipped() -> None:
     fit = FlowGainFit(Kamp=5.0).fit(v, np.abs(reading))
     assert fit.leakage_.value == 0.0 and fit.leakage_.interval[0] < 0 and "clipped" in (fit.leakage_.note or "")
     assert fit.Kq_.value == pytest.approx(0.0385, rel=0.01)
+
+
+@pytest.fixture(scope="module")
+def stable_run_rig(station: Station, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The default station with its 'instability' run at 0.4 of the gain that makes it oscillate:
+    the step's transient dies out, as when a student stops raising the gain too early."""
+    runs = [r if r.kind != "instability" else replace(r, controller=Controller(0.4 * r.controller.Kp))
+            for r in paper_runs(station.params(), station_effects(station))]
+    return make_dataset(station, tmp_path_factory.mktemp("stable") / "default", seed=3, runs=runs,
+                        effects=station_effects(station))
+
+
+def test_run_without_critical_oscillation_keys_as_not_identifiable(stable_run_rig: Path, tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "key.json"
+    assert main(["key", str(stable_run_rig), "-o", str(out)]) == 0
+    printed = " ".join(capsys.readouterr().out.split())
+    key = read_key(out)
+    assert key.model.beta_over_Vt is None and key.model.Kce is None and not key.identified
+    for name in ("omega_crit", "Kp_crit", "beta_over_Vt", "Kce", "Kce_model", "Kp_no_overshoot", "closed_loop_poles"):
+        e = key.quantities[name]
+        assert e.status == "not_identifiable" and e.value is None and "fewer than 8" in (e.reason or ""), name
+    assert key.quantities["Kq"].reachable and key.quantities["Fc"].reachable
+    assert re.search(r"Kce \*\s*│\s*not identifiable", printed) and "raise Kp until the oscillation grows" in printed
+    with pytest.raises(GraderError, match="not identifiable"):
+        key.params()
