@@ -118,6 +118,7 @@ class Outcome:
     errors: dict[str, float] = field(default_factory=dict)
     not_correct: list[str] = field(default_factory=list)
     not_reachable: list[str] = field(default_factory=list)
+    not_identifiable: bool = False
     failure: str = ""
     seconds: float = 0.0
 
@@ -156,8 +157,8 @@ def one_rig(k: int, seed: int, diagnose: bool) -> Outcome:
             truth = st.params()
             out.errors = {n: abs(key["quantities"][n]["value"] / getattr(truth, TRUTH_OF[n]) - 1) for n in BOUNDS
                           if key["quantities"][n]["value"] is not None}
-            out.not_reachable = [f"{n} ({e['status']})" if e["status"] != "not_reachable" else n
-                                 for n, e in key["quantities"].items() if e.get("status", "ok") != "ok"]
+            out.not_reachable = [n for n, e in key["quantities"].items() if e.get("status") == "not_reachable"]
+            out.not_identifiable = key["quantities"]["Kce"].get("status") == "not_identifiable"
             sub = root / "sub.json"
             sub.write_text(json.dumps(correct_submission(key, st.station)))
             where = ["--datasets", str(root / "datasets"), "--keys", str(root / "keys")]
@@ -191,7 +192,10 @@ def report(outcomes: list[Outcome], wall: float) -> str:
     for o in outcomes:
         for item in o.not_reachable:
             nr[item] = nr.get(item, 0) + 1
-    lines.append("  not reachable (or not identifiable) in keys: " + (", ".join(f"{k} {v}" for k, v in sorted(nr.items())) or "none"))
+    lines.append("  not reachable in keys: " + (", ".join(f"{k} {v}" for k, v in sorted(nr.items())) or "none"))
+    ni = [o.station for o in outcomes if o.not_identifiable]
+    lines.append(f"  keys with β/Vt and Kce not identifiable (no critical oscillation in the instability run): {len(ni)}"
+                 + (f" ({', '.join(ni)})" if ni else ""))
     for o in outcomes:
         if not o.recovered:
             lines.append(f"  FAIL {o.station} ({o.feedback}): exits {o.exits} {o.failure} "

@@ -81,13 +81,13 @@ class RunPlan:
 
 
 def _sustained(y: Array, t: Array, start: float) -> NDArray[np.bool_]:
-    """Runs whose oscillation at the end has not decayed and spans at least 0.02 in peak to peak
-    (10 % of the step; a loop that jumps straight into a saturated limit cycle is unstable too).
-    A friction or quantisation limit cycle of a few ADC counts is not an unstable loop: a student
-    raises the gain further."""
+    """Runs whose oscillation at the end has not decayed and spans at least 0.04 in peak to peak
+    (20 % of the step; a loop that jumps straight into a saturated limit cycle is unstable too).
+    A friction or quantisation limit cycle of a few ADC counts, or noise, is not an unstable loop:
+    a student raises the gain further."""
     early = np.ptp(y[:, (t >= start + 0.1) & (t < start + 0.3)], axis=1)
     late = np.ptp(y[:, t >= t[-1] - 0.2], axis=1)
-    return (late > 0.9 * early) & (late > 0.02)
+    return (late > 0.9 * early) & (late > 0.04)
 
 
 def instability_gain(p: RigParams, effects: EffectSet, *, duration: float = 2.0) -> float:

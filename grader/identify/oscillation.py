@@ -45,12 +45,23 @@ def _envelope(t: Array, x: Array, f0: float) -> Array:
     return np.abs(signal.hilbert(signal.filtfilt(b, a, x)))
 
 
-def _free_window(t: Array, env: Array, f0: float, a_sat: float, floor: float) -> tuple[NDArray[np.bool_], bool]:
-    """(window, usable): from a quarter second after the start until the envelope first reaches
+def _settled(t: Array, y: Array, env: Array, f0: float, a_sat: float) -> float:
+    """When the step's transient is over [s]: two cycles after the position first crosses its
+    median level, once the envelope is below the saturation amplitude ``a_sat`` [in]; at most a
+    quarter second after the start (a quarter of the run if shorter than a second)."""
+    latest = t[0] + 0.25 * (t[-1] - t[0]) if t[-1] - t[0] < 1.0 else t[0] + 0.25
+    level = float(np.median(y))
+    crossed = np.flatnonzero(np.sign(y - level) != np.sign(y[0] - level))
+    calm = np.flatnonzero((t > (t[crossed[0]] if crossed.size else latest) + 2.0 / f0) & (env < SATURATION_SHARE * a_sat))
+    return min(float(t[calm[0]]) if calm.size else latest, latest)
+
+
+def _free_window(t: Array, y: Array, env: Array, f0: float, a_sat: float, floor: float) -> tuple[NDArray[np.bool_], bool]:
+    """(window, usable): from :func:`_settled` until the envelope first reaches
     90 % of its peak or :data:`SATURATION_SHARE` of the saturation amplitude ``a_sat`` [in] (at least
     :data:`MIN_CYCLES` cycles), or fades below a quarter of its starting value or the
     ``floor`` [in] (an oscillation that friction stops: usable only after that many cycles)."""
-    start = t[0] + 0.25 * (t[-1] - t[0]) if t[-1] - t[0] < 1.0 else t[0] + 0.25
+    start = _settled(t, y, env, f0, a_sat)
     after = t > start
     env0 = float(env[np.argmax(after)])
     grown = np.flatnonzero(after & (env >= min(0.9 * env.max(), SATURATION_SHARE * a_sat)))
@@ -115,7 +126,7 @@ class OscillationFit:
             raise IdentificationError("instability run: no oscillation found")
         env = _envelope(t, x, f0)
         floor = max(MIN_COUNTS * _quantum(y), MIN_STEP_SHARE * abs(float(np.median(y)) - before))
-        win, self.usable_ = _free_window(t, env, f0, self.a_sat, floor)
+        win, self.usable_ = _free_window(t, y, env, f0, self.a_sat, floor)
         tw, yw = t[win], y[win]
         cycles = (tw[-1] - tw[0]) * f0 if tw.size else 0.0
         self.why_not_ = None if self.usable_ else (

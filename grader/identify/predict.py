@@ -85,10 +85,11 @@ def predictions(ident: Identification) -> dict[str, Estimate]:
     se = {k: est[k].se for k in names}
     if ds.manifest.feedback == "inches":
         se["Kpot"] = 0.0
+    x["B"], se["B"] = ident.match_B, est["B"].se if ident.match_B > 0 else 0.0  # the viscous B the poles are placed with
 
     def evaluate(v: Mapping[str, float]) -> list[float]:
-        p = match_sampled_poles(base.with_(Kq=v["Kq"], Kpot=v["Kpot"], B=ident.match_B), kp=ident.kp_run,
-                                sigma=v["growth_rate"], omega=v["omega_crit"]).with_(B=base.B)
+        p = match_sampled_poles(base.with_(Kq=v["Kq"], Kpot=v["Kpot"], B=v["B"]), kp=ident.kp_run,
+                                sigma=v["growth_rate"], omega=v["omega_crit"])
         kc = zloop.critical_gain(p)
         out = [p.beta_over_Vt, p.Kce, _or_nan(kc), _or_nan(zloop.gain_no_overshoot(p)), _or_nan(zloop.gain_for_overshoot(p, 0.25))]
         stable = ramp is not None and ramp.controller.Kp < kc
