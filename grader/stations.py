@@ -85,11 +85,15 @@ class Station(BaseModel):
         )
 
 
+def station_file(name_or_path: str | Path) -> Path:
+    """The file of a station given by name (in ``reference_solutions/stations``) or by path."""
+    path = Path(name_or_path)
+    return reference_dir() / "stations" / f"{name_or_path}.yaml" if not path.suffix else path
+
+
 def load_station(name_or_path: str | Path) -> Station:
     """Load a station by name (from ``reference_solutions/stations``) or by file path."""
-    path = Path(name_or_path)
-    if not path.suffix:
-        path = reference_dir() / "stations" / f"{name_or_path}.yaml"
+    path = station_file(name_or_path)
     if not path.is_file():
         raise DatasetError(f"station {name_or_path!s}: no such station file ({path})")
     try:
