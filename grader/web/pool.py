@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import asyncio
 import multiprocessing as mp
+import os
 import signal
+import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -23,6 +25,7 @@ from typing import Any
 from grader.web.service import CheckService, build_service, result_document
 
 START_TIMEOUT_S = 300.0  # longest wait for every worker to build and warm its service
+ORPHAN_POLL_S = 1.0  # how often a worker checks that its server is still there
 _SERVICE: CheckService | None = None  # the worker process's own service
 
 
@@ -37,16 +40,23 @@ def service_from_options(cfg: dict[str, Any]) -> CheckService:
 
 
 def _start(cfg: dict[str, Any]) -> None:
-    """Worker initializer: Ctrl-C is the server's to handle; build and warm this worker's service."""
+    """Worker initializer: Ctrl-C is the server's to handle, and the worker ends with the server
+    however that ends; build and warm this worker's service."""
     global _SERVICE
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_orphan_watch, args=(os.getppid(),), daemon=True).start()
     _SERVICE = service_from_options(cfg)
     _SERVICE.warm()
 
 
-def _pid() -> int:
-    import os
+def _orphan_watch(server: int) -> None:
+    """End this worker once its server process is gone (even killed: nothing else would tell it)."""
+    while os.getppid() == server:
+        time.sleep(ORPHAN_POLL_S)
+    os._exit(0)
 
+
+def _pid() -> int:
     time.sleep(0.05)  # long enough for the other workers to take the other start-up calls
     return os.getpid()
 
@@ -93,4 +103,5 @@ class CheckPool:
             raise
 
     def close(self) -> None:
-        self._pool.shutdown(wait=False, cancel_futures=True)
+        """Stop the workers (at the server's shutdown): queued checks are cancelled, running ones end."""
+        self._pool.shutdown(wait=True, cancel_futures=True)
