@@ -15,7 +15,8 @@ import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
 
 from grader.datasets.schema import Given
-from grader.errors import DatasetError, GraderError, validation_message
+from grader.errors import DatasetError, GraderError, SimulationError, validation_message
+from grader.model.effects import EffectSet
 from grader.model.params import RigParams
 from grader.units import quantity_to_float
 
@@ -105,3 +106,16 @@ def load_station(name_or_path: str | Path) -> Station:
     except ValidationError as exc:
         raise DatasetError(validation_message(path.name, exc)) from None
     return station
+
+
+def station_effects(station: Station) -> EffectSet:
+    """The station's own effects (its ``effects:`` block), with its ``noise.position`` as
+    ``sensor_noise`` unless the block sets that effect itself."""
+    try:
+        effects = EffectSet.from_quantities(station.effects)
+    except SimulationError as exc:
+        raise SimulationError(f"station {station.station}: effects: {exc}") from None
+    sigma = station.noise_values()["position"]
+    if "sensor_noise" not in effects and sigma > 0:
+        effects = effects.merged(EffectSet({"sensor_noise": {"sigma": sigma}}))
+    return effects

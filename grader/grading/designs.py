@@ -25,7 +25,7 @@ from grader.grading.rubric import DesignSpec
 from grader.model.effects import EffectSet
 from grader.model.params import Controller, RigParams
 from grader.model.rig_setup import DAC_LIMIT
-from grader.stations import load_station, station_file
+from grader.stations import load_station, station_effects, station_file
 
 RigVerdict = Literal["ok", "limit_cycle", "unstable"]
 STEP = 0.2  # [in], as in the lab's step runs
@@ -111,8 +111,6 @@ def _station_rig(station: str) -> tuple[RigParams, EffectSet] | None:
 @lru_cache(maxsize=64)
 def _read_station_rig(station: str, mtime_ns: int, size: int) -> tuple[RigParams, EffectSet] | None:
     """:func:`_station_rig` for one version (modification time [ns], size [bytes]) of the file."""
-    from grader.synth import station_effects
-
     try:
         s = load_station(station)
         effects = station_effects(s)
