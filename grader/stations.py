@@ -15,7 +15,8 @@ import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
 
 from grader.datasets.schema import Given
-from grader.errors import DatasetError, GraderError, validation_message
+from grader.errors import DatasetError, GraderError, SimulationError, validation_message
+from grader.model.effects import EffectSet
 from grader.model.params import RigParams
 from grader.units import quantity_to_float
 
@@ -85,11 +86,15 @@ class Station(BaseModel):
         )
 
 
+def station_file(name_or_path: str | Path) -> Path:
+    """The file of a station given by name (in ``reference_solutions/stations``) or by path."""
+    path = Path(name_or_path)
+    return reference_dir() / "stations" / f"{name_or_path}.yaml" if not path.suffix else path
+
+
 def load_station(name_or_path: str | Path) -> Station:
     """Load a station by name (from ``reference_solutions/stations``) or by file path."""
-    path = Path(name_or_path)
-    if not path.suffix:
-        path = reference_dir() / "stations" / f"{name_or_path}.yaml"
+    path = station_file(name_or_path)
     if not path.is_file():
         raise DatasetError(f"station {name_or_path!s}: no such station file ({path})")
     try:
@@ -101,3 +106,16 @@ def load_station(name_or_path: str | Path) -> Station:
     except ValidationError as exc:
         raise DatasetError(validation_message(path.name, exc)) from None
     return station
+
+
+def station_effects(station: Station) -> EffectSet:
+    """The station's own effects (its ``effects:`` block), with its ``noise.position`` as
+    ``sensor_noise`` unless the block sets that effect itself."""
+    try:
+        effects = EffectSet.from_quantities(station.effects)
+    except SimulationError as exc:
+        raise SimulationError(f"station {station.station}: effects: {exc}") from None
+    sigma = station.noise_values()["position"]
+    if "sensor_noise" not in effects and sigma > 0:
+        effects = effects.merged(EffectSet({"sensor_noise": {"sigma": sigma}}))
+    return effects

@@ -31,7 +31,7 @@ from grader.model.params import Controller, RigParams
 from grader.model.rig import simulate_rig, simulate_rig_batch
 from grader.model import zloop
 from grader.model.sampled import simulate
-from grader.stations import Station
+from grader.stations import Station, station_effects  # noqa: F401 - station_effects is part of synth's API
 
 Array = NDArray[np.float64]
 #: (params, controller, t [s], r [in], rng) -> (y [in], u [V]) without measurement noise
@@ -53,19 +53,6 @@ def rig_runs(effects: EffectSet) -> RunSimulator:
         return simulate_rig(p, c, t, r, effects, rng=rng)
 
     return run
-
-
-def station_effects(station: Station) -> EffectSet:
-    """The station's own effects (its ``effects:`` block), with its ``noise.position`` as
-    ``sensor_noise`` unless the block sets that effect itself."""
-    try:
-        effects = EffectSet.from_quantities(station.effects)
-    except SimulationError as exc:
-        raise SimulationError(f"station {station.station}: effects: {exc}") from None
-    sigma = station.noise_values()["position"]
-    if "sensor_noise" not in effects and sigma > 0:
-        effects = effects.merged(EffectSet({"sensor_noise": {"sigma": sigma}}))
-    return effects
 
 
 @dataclass(frozen=True)

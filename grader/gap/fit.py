@@ -81,7 +81,7 @@ class BatchFitter:
 
     def residuals(self, jobs: Sequence[tuple[Candidate, Array, tuple[int, ...]]]) -> list[Array]:
         """Stacked residual of each (candidate, θ, runs) job."""
-        requests = [(c.point(self.base, th), i) for c, th, idx in jobs for i in idx]
+        requests = [(pt, i) for c, th, idx in jobs for pt in [c.point(self.base, th)] for i in idx]
         ys = iter(self.sim(requests))
         out = []
         for _, _, idx in jobs:

@@ -33,15 +33,21 @@ MEASURED, LINEAR, AUGMENTED = "#222222", "#d95f02", "#1b9e77"
 MEASURED_LW, MODEL_LW = 1.5, 0.9
 
 
-def png(fig: Figure) -> bytes:
+#: The run figure's fixed margins (fractions of 8 × 5.8 in): room for the title and legend above,
+#: the segment key below and six-character tick labels with a two-line axis label on the left. A
+#: fixed layout draws the figure once; a constrained one draws it twice (a third of the report's time).
+RUN_MARGINS = {"left": 0.105, "right": 0.985, "top": 0.89, "bottom": 0.165, "hspace": 0.07}
+
+
+def png(fig: Figure, *, tight: bool = True) -> bytes:
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=DPI, bbox_inches="tight", metadata={"Software": None})
+    fig.savefig(buffer, format="png", dpi=DPI, bbox_inches="tight" if tight else None, metadata={"Software": None})
     return buffer.getvalue()
 
 
 def run_figure(run: GapRun, segs: list[Segment], y_lin: Array, y_aug: Array, effect: str) -> bytes:
     """The run's figure as PNG bytes (see :func:`draw_run`)."""
-    return png(draw_run(run, segs, y_lin, y_aug, effect))
+    return png(draw_run(run, segs, y_lin, y_aug, effect), tight=False)
 
 
 def draw_run(run: GapRun, segs: list[Segment], y_lin: Array, y_aug: Array, effect: str) -> Figure:
@@ -50,8 +56,8 @@ def draw_run(run: GapRun, segs: list[Segment], y_lin: Array, y_aug: Array, effec
     The legends sit outside the panels so they never cover the data; the segments are named in
     a key under the figure, not by labels over the bands, and their shading starts at the step.
     """
-    fig = Figure(figsize=(8.0, 5.8), layout="constrained")
-    top, bottom = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 2]})
+    fig = Figure(figsize=(8.0, 5.8))
+    top, bottom = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 2], **RUN_MARGINS})
     t = run.t
     aug_label = f"with {effect_name(effect)}" if effect != "none" else "linear, re-fitted"
     command = top.plot(t, run.r, color="#999999", lw=0.9, ls="--", label="command", zorder=1)
@@ -70,8 +76,8 @@ def draw_run(run: GapRun, segs: list[Segment], y_lin: Array, y_aug: Array, effec
     bottom.set_xlabel("time [s]")
     keys = [Patch(color=SEGMENT_COLOURS[name], label=name.replace("_", " ")) for name in shown]
     if keys:
-        fig.legend(handles=keys, loc="outside lower center", ncol=len(keys), fontsize=8, frameon=False,
-                   title="segments (shaded)", title_fontsize=8)
+        fig.legend(handles=keys, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncol=len(keys), fontsize=8,
+                   frameon=False, title="segments (shaded)", title_fontsize=8)
     return fig
 
 

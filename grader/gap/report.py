@@ -11,7 +11,6 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from grader.gap import plots
 from grader.gap.schema import Diagnosis, diagnosis_json
 from grader.gap.summary import READOFF_NAMES, combination, effect_name, param_text, show, summary
 
@@ -118,12 +117,15 @@ noise σ ≈ {show(d.noise.sigma.value, "in")} · grader {html.escape(d.generate
 
 def _plot(job: tuple[Any, ...]) -> bytes:
     """One PNG: ``("run", run, segments, y_linear, y_augmented, effect)`` or ``("candidates", diagnosis)``."""
+    from grader.gap import plots  # matplotlib: imported where the figures are drawn
+
     return plots.run_figure(*job[1:]) if job[0] == "run" else plots.candidates_figure(*job[1:])
 
 
 def _render_plots(analysis: Analysis) -> dict[str, bytes]:
     """Every PNG of the report, rendered on all cores where processes fork (matplotlib is
-    single-threaded and the figures are independent; the bytes do not depend on the split)."""
+    single-threaded and the figures are independent; the bytes do not depend on the split). The
+    workers import matplotlib themselves, at the same time: the diagnosis never needs it."""
     d = analysis.diagnosis
     jobs: dict[str, tuple[Any, ...]] = {
         f"run_{r.name}.png": ("run", r, s, yl, ya, _augmented(d))

@@ -19,7 +19,6 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from grader.precision import rounded
 
 SCHEMA = "grader.diagnosis/1"
 SegmentName = Literal["rise", "overshoot", "settling", "steady_state", "tracking", "oscillation"]

@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from grader.gap.candidates import NONE
-from grader.gap.crossval import typical
+from grader.gap.crossval import FLOOR, typical
 
 Array = NDArray[np.float64]
 PENALTY = 0.02
@@ -129,14 +129,32 @@ def rank(cands: Sequence[Scored], noise_nrmse: Array, *, seed: int = 0) -> Ranki
                    _confidence(cands, noise_nrmse, verdict, seed), _ties(cands, s, verdict, noise_nrmse))
 
 
+def _wmean(w: Array, x: Array) -> Array:
+    """Weighted means of the rows of ``x`` (candidates × runs) under each weight row of ``w``
+    (resamples × runs): (resamples × candidates), as :func:`numpy.average` sums (no BLAS)."""
+    return (w[:, None, :] * x[None, :, :]).sum(axis=2) / w.sum(axis=1)[:, None]
+
+
 def _confidence(cands: Sequence[Scored], noise_nrmse: Array, verdict: int, seed: int) -> float:
-    """Share of run-bootstrap resamples giving the same verdict (an effect: and no candidate tied with it)."""
+    """Share of run-bootstrap resamples giving the same verdict (an effect: and no candidate tied with it);
+    :func:`decide` and :func:`_ties` on every resample at once."""
     rng = np.random.default_rng(seed)
     n = noise_nrmse.size
-    keep = 0
-    for _ in range(BOOTSTRAP):
-        w = np.bincount(rng.integers(0, n, n), minlength=n).astype(float)
-        if decide(cands, noise_nrmse, w)[0] != verdict:
-            continue
-        keep += cands[verdict].effect == NONE or not _ties(cands, scores(cands, w), verdict, noise_nrmse, w)
-    return keep / BOOTSTRAP
+    w = np.stack([np.bincount(rng.integers(0, n, n), minlength=n) for _ in range(BOOTSTRAP)]).astype(float)
+    held = np.exp(_wmean(w, np.log(np.maximum(np.array([c.heldout**2 for c in cands]), FLOOR))))
+    s = held * (1.0 + PENALTY * np.array([c.k_extra for c in cands]))
+    fit = _wmean(w, np.array([c.fit**2 for c in cands]))
+    floor = _wmean(w, (noise_nrmse**2)[None, :])[:, 0]
+    i_none = next(i for i, c in enumerate(cands) if c.effect == NONE)
+    if len(cands) < 2:
+        return 1.0
+    rows = np.arange(BOOTSTRAP)
+    best = np.argmin(np.where(np.arange(len(cands)) == i_none, np.inf, s), axis=1)
+    e = np.minimum((1.0 - held[rows, best] / held[:, i_none]) / REL_GAIN,
+                   (fit[:, i_none] - fit[rows, best]) / (NOISE_GAIN * floor))
+    same = np.where(e > 1.0, best, i_none) == verdict
+    if cands[verdict].effect == NONE:
+        return float(np.sum(same)) / BOOTSTRAP
+    others = np.array([i != verdict and c.effect != NONE for i, c in enumerate(cands)])
+    tied = (np.log(s / s[:, [verdict]]) < TIE) | (fit - fit[:, [verdict]] < TIE_FIT * floor[:, None])
+    return float(np.sum(same & ~np.any(tied & others, axis=1))) / BOOTSTRAP

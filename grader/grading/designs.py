@@ -25,7 +25,7 @@ from grader.grading.rubric import DesignSpec
 from grader.model.effects import EffectSet
 from grader.model.params import Controller, RigParams
 from grader.model.rig_setup import DAC_LIMIT
-from grader.stations import load_station
+from grader.stations import load_station, station_effects, station_file
 
 RigVerdict = Literal["ok", "limit_cycle", "unstable"]
 STEP = 0.2  # [in], as in the lab's step runs
@@ -99,9 +99,18 @@ def classify(r: NDArray[np.float64], y: NDArray[np.float64], u: NDArray[np.float
 
 def _station_rig(station: str) -> tuple[RigParams, EffectSet] | None:
     """The station's true parameters and effects, without sensor noise: random noise would make a
-    design's verdict depend on the other designs simulated in its batch."""
-    from grader.synth import station_effects
+    design's verdict depend on the other designs simulated in its batch. Read once per version of
+    the station's file (a web server checks many designs of one station)."""
+    try:
+        stat = station_file(station).stat()
+    except OSError:
+        return None
+    return _read_station_rig(station, stat.st_mtime_ns, stat.st_size)
 
+
+@lru_cache(maxsize=64)
+def _read_station_rig(station: str, mtime_ns: int, size: int) -> tuple[RigParams, EffectSet] | None:
+    """:func:`_station_rig` for one version (modification time [ns], size [bytes]) of the file."""
     try:
         s = load_station(station)
         effects = station_effects(s)

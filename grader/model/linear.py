@@ -13,13 +13,16 @@ For P control the characteristic polynomial is ``s³ + a2 s² + a1 s + a0`` with
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
-import control as ct
 import numpy as np
 from numpy.typing import NDArray
 
 from grader.errors import ModelError
 from grader.model.params import Controller, RigParams
+
+if TYPE_CHECKING:  # python-control loads on first use (it brings matplotlib): the fast paths never need it
+    import control as ct
 
 
 def plant_coeffs(p: RigParams) -> tuple[float, float, float]:
@@ -48,22 +51,30 @@ def char_poly(p: RigParams, c: Controller) -> NDArray[np.float64]:
 
 def plant_tf(p: RigParams) -> ct.TransferFunction:
     """X/I [in/mA]."""
+    import control as ct
+
     a2, a1, b0 = plant_coeffs(p)
     return ct.tf([b0], [1.0, a2, a1, 0.0])
 
 
 def controller_tf(c: Controller) -> ct.TransferFunction:
     """C(s) = Kp + Ki/s + Kd·s (ideal derivative: continuous model only)."""
+    import control as ct
+
     return ct.tf([c.Kd, c.Kp, c.Ki], [1.0, 0.0]) if c.Ki else ct.tf([c.Kd, c.Kp], [1.0])
 
 
 def open_loop_tf(p: RigParams, c: Controller) -> ct.TransferFunction:
     """L(s) = C·Kamp·k_fb·X/I (dimensionless)."""
+    import control as ct
+
     return ct.minreal(controller_tf(c) * p.Kamp * p.k_fb * plant_tf(p), verbose=False)
 
 
 def closed_loop_tf(p: RigParams, c: Controller) -> ct.TransferFunction:
     """Y/R for a position command R [in]."""
+    import control as ct
+
     return ct.feedback(open_loop_tf(p, c), 1)
 
 

@@ -12,9 +12,11 @@ import json
 import logging
 import time
 from collections import Counter
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import anyio
 from fastapi import FastAPI, Request, UploadFile
@@ -28,6 +30,9 @@ from grader.web.page import render_page
 from grader.web.preview import preview
 from grader.web.ratelimit import RateLimiter
 from grader.web.service import CheckService, result_document
+
+if TYPE_CHECKING:
+    from grader.web.pool import CheckPool
 
 STATIC = Path(__file__).parent / "static"
 LOG = logging.getLogger("grader.web")
@@ -136,9 +141,16 @@ def _error_handlers(app: FastAPI, xlsx_cap: int) -> None:
         return _error(500, "internal error; the check could not be completed (please report it to your instructor)")
 
 
-def create_app(service: CheckService, options: WebOptions = WebOptions()) -> FastAPI:
-    """The app for one worker process."""
-    app = FastAPI(title="grader self-check", docs_url=None, redoc_url=None, openapi_url=None)
+def create_app(service: CheckService, options: WebOptions = WebOptions(), pool: CheckPool | None = None) -> FastAPI:
+    """The app: checks run in ``pool``'s worker processes, or in ``service`` on this process's threads."""
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        yield
+        if pool is not None:
+            pool.close()
+
+    app = FastAPI(title="grader self-check", docs_url=None, redoc_url=None, openapi_url=None, lifespan=lifespan)
     checks = RateLimiter(options.checks_per_minute, options.burst)
     previews = RateLimiter(options.checks_per_minute * 10, options.burst * 10)
     lanes = anyio.CapacityLimiter(options.threads)
@@ -155,9 +167,12 @@ def create_app(service: CheckService, options: WebOptions = WebOptions()) -> Fas
         return _error(429, f"too many requests: at most {limiter.per_minute:g} a minute; wait and try again",
                       **{"Retry-After": str(limiter.retry_after())})
 
-    async def run_check(fn: Any, *args: Any) -> JSONResponse:
+    async def run_check(method: str, *args: Any) -> JSONResponse:
         start = time.perf_counter()
-        doc = result_document(await anyio.to_thread.run_sync(fn, *args, limiter=lanes))
+        if pool is not None:
+            doc = await pool.check(method, *args)
+        else:
+            doc = result_document(await anyio.to_thread.run_sync(getattr(service, method), *args, limiter=lanes))
         _count_log(doc["items"], time.perf_counter() - start)
         return JSONResponse(doc)
 
@@ -177,7 +192,7 @@ def create_app(service: CheckService, options: WebOptions = WebOptions()) -> Fas
     async def check(request: Request) -> JSONResponse:
         if (refused := limited(checks, request)) is not None:
             return refused
-        return await run_check(service.check_document, await _json_body(request))
+        return await run_check("check_document", await _json_body(request))
 
     @app.post("/api/check-file")
     async def check_file(request: Request, file: UploadFile) -> JSONResponse:
@@ -191,7 +206,7 @@ def create_app(service: CheckService, options: WebOptions = WebOptions()) -> Fas
         cap = service.opts.limits.max_xlsx_bytes if suffix == ".xlsx" else MAX_BODY
         if len(content) > cap:
             return _too_large(cap)
-        return await run_check(service.check_upload, name, content)
+        return await run_check("check_upload", name, content)
 
     @app.post("/api/preview")
     async def preview_(request: Request) -> JSONResponse:

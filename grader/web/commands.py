@@ -1,8 +1,8 @@
 """CLI verb ``grader serve``: the students' self-check page and JSON API (FastAPI on uvicorn).
 
-Heavy imports (fastapi, uvicorn, the grading stack) happen inside the handler. With
-``--workers`` > 1 uvicorn starts that many processes, each building the app from the
-``GRADER_SERVE`` environment variable through :func:`app_from_env`.
+Heavy imports (fastapi, uvicorn, the grading stack) happen inside the handler. uvicorn builds
+the app from the ``GRADER_SERVE`` environment variable through :func:`app_from_env`; the checks
+run in ``--workers`` processes fed in arrival order (:mod:`grader.web.pool`).
 """
 
 from __future__ import annotations
@@ -10,26 +10,28 @@ from __future__ import annotations
 import argparse
 import json
 import os
-from pathlib import Path
 from typing import Any
+
+from grader.errors import GraderError
 
 ENV = "GRADER_SERVE"  # JSON of the serve options, read by each worker process
 DEFAULT_RUBRIC = "rubrics/hydraulic_positioner.yaml"
 
 
 def app_from_env() -> Any:
-    """The app for one worker, configured from ``$GRADER_SERVE`` (uvicorn factory)."""
-    from grader.stations import repo_root
+    """The app configured from ``$GRADER_SERVE`` (uvicorn factory): with ``workers`` >= 1 the checks
+    run in that many warmed worker processes, else on this process's threads."""
     from grader.web.app import WebOptions, create_app
-    from grader.web.service import build_service
+    from grader.web.pool import CheckPool, service_from_options
 
     cfg = json.loads(os.environ.get(ENV, "{}"))
     _log_setup()
-    service = build_service(Path(cfg.get("rubric") or repo_root() / DEFAULT_RUBRIC),
-                            Path(cfg["stations"]) if cfg.get("stations") else None,
-                            Path(cfg["keys"]) if cfg.get("keys") else None)
-    service.warm()
-    return create_app(service, WebOptions(checks_per_minute=cfg.get("rate_limit", 60.0), burst=cfg.get("burst", 30.0)))
+    service = service_from_options(cfg)
+    workers = int(cfg.get("workers") or 0)
+    if not workers:
+        service.warm()
+    options = WebOptions(checks_per_minute=cfg.get("rate_limit", 60.0), burst=cfg.get("burst", 30.0))
+    return create_app(service, options, CheckPool(cfg, workers) if workers else None)
 
 
 def _log_setup() -> None:
@@ -43,13 +45,14 @@ def _log_setup() -> None:
 def _serve(args: argparse.Namespace) -> int:
     import uvicorn
 
+    if args.workers < 1:
+        raise GraderError(f"--workers must be at least 1, got {args.workers}")
     os.environ[ENV] = json.dumps({"rubric": args.rubric, "stations": args.stations, "keys": args.keys,
-                                  "rate_limit": args.rate_limit, "burst": args.burst})
+                                  "rate_limit": args.rate_limit, "burst": args.burst, "workers": args.workers})
     print(f"grader serve: http://{args.host}:{args.port}/  (Ctrl-C to stop)")
     uvicorn.run("grader.web.commands:app_from_env", factory=True, host=args.host, port=args.port,
-                workers=args.workers, proxy_headers=True, forwarded_allow_ips=args.forwarded_allow_ips,
-                access_log=not args.no_access_log, log_level="info",
-                timeout_worker_healthcheck=60)  # a worker busy with rig simulations is not hung
+                proxy_headers=True, forwarded_allow_ips=args.forwarded_allow_ips,
+                access_log=not args.no_access_log, log_level="info")
     return 0
 
 
@@ -61,9 +64,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--stations", help="folder of station datasets, one sub-folder each (default: "
                    "reference_solutions/datasets); checked-in keys are read from --keys or its sibling keys/")
     p.add_argument("--keys", help="folder of checked-in keys <station>.json (default: next to --stations)")
-    p.add_argument("--workers", type=int, default=1, help="worker processes (default: 1; about one per core)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="processes that run the checks, fed in arrival order (default: 1; about one per core)")
     p.add_argument("--rate-limit", type=float, default=60.0,
-                   help="checks a minute per client address, per worker (default: 60; 0: no limit)")
+                   help="checks a minute per client address (default: 60; 0: no limit)")
     p.add_argument("--burst", type=float, default=30.0, help="checks a client may send at once (default: 30)")
     p.add_argument("--forwarded-allow-ips", default="127.0.0.1",
                    help="proxies whose X-Forwarded-For is trusted for the client address (default: 127.0.0.1)")

@@ -26,6 +26,19 @@ from grader.grading.submissions import Submission, fallback_id, from_mapping, re
 DOC_DEFAULTS: dict[str, Any] = {"submission_id": "self-check", "students": [{"name": "student"}]}
 RIG_MEMO_SIZE = 4096  # rig verdicts kept (one per distinct station, design item and gains)
 RIG_WAIT_S = 60.0  # longest wait for another thread's rig simulation of the same design
+#: A submission checked once per station at start-up, so that no student's check pays the imports,
+#: the compiled engine's loading or a key's first use (wrong or right does not matter: nothing is sent).
+WARM_ANSWERS: dict[str, Any] = {
+    "closed_loop_tf": "4 beta A Kp Kamp Kpot Kq / (M Vt s^3 + (B Vt + 4 beta Kce M) s^2 + 4 beta (A^2 + B Kce) s"
+                      " + 4 beta A Kp Kamp Kpot Kq)",
+    "open_loop_tf": "4 beta A Kp Kamp Kpot Kq / (s (M Vt s^2 + (B Vt + 4 beta Kce M) s + 4 beta (A^2 + B Kce)))",
+    "char_poly": "s^3 + (B/M + 4 beta Kce/Vt) s^2 + 4 beta (A^2 + B Kce)/(M Vt) s + 4 beta A Kp Kamp Kpot Kq/(M Vt) = 0",
+    "Kpot": "1 V/in", "Kq": "0.04 in^3/s/mA", "omega_crit": "25 Hz", "Kp_crit": 50, "Kce": "5e-4 in^3/s/psi",
+    "beta_over_Vt": "3e4 psi/in^3", "Kp_no_overshoot": 20, "Kp_25_overshoot": 40, "ramp_ess_P": "0.1 in",
+    "closed_loop_poles": [{"Kp": 10, "Ki": 0, "Kd": 0, "poles": ["-20+150j", "-20-150j", "-10"]}],
+    "pd_design": {"Kp": 40, "Kd": 0.1, "overshoot": "10 %"},
+    "pi_design": {"Kp": 10, "Ki": 20, "ramp_error": "0 in"},
+}
 
 
 class RigMemo(dict[RigCase, "RigVerdict | None"]):
@@ -81,10 +94,13 @@ class CheckService:
         return self.store.stations()
 
     def warm(self) -> None:
-        """Resolve every station's key now (at startup) rather than on the first request."""
+        """Resolve every station's key and check :data:`WARM_ANSWERS` against it now (at start-up),
+        rather than on the first students' requests."""
+        answers = {k: v for k, v in WARM_ANSWERS.items() if k in self.opts.rubric.items}
         for station in self.stations():
             try:
                 self._key(station)
+                self.check_document({"submission_id": "warm-up", "station": station, "answers": answers})
             except GraderError:
                 continue  # a broken station dataset: its submissions get the prelab-only note
 

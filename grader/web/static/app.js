@@ -23,6 +23,15 @@
     read.className = "read";
     read.textContent = "read as: " + data.read_as;
     el.append(math, read);
+    fitMath(el, math);
+  }
+
+  // A wide expression on a narrow screen: shrink it to fit, down to 80 % (still legible); beyond that the box scrolls sideways
+  // and the "read as" line below it wraps.
+  function fitMath(box, math) {
+    math.style.fontSize = "";
+    const over = math.scrollWidth / Math.max(box.clientWidth, 1);
+    if (over > 1) math.style.fontSize = Math.max(0.8, 1 / over).toFixed(3) + "em";
   }
 
   function schedulePreview(input) {
