@@ -112,8 +112,10 @@ class OscillationFit:
     def __init__(self, a_sat: float = np.inf) -> None:
         self.a_sat = a_sat
 
-    def fit(self, t: ArrayLike, y: ArrayLike, *, start: float = 0.0, decrement: float = 0.0) -> OscillationFit:
-        """Fit the run; ``decrement`` [in/s] is Coulomb friction's take off the amplitude's growth."""
+    def fit(self, t: ArrayLike, y: ArrayLike, *, start: float = 0.0, decrement: float = 0.0,
+            guess: OscillationFit | None = None) -> OscillationFit:
+        """Fit the run; ``decrement`` [in/s] is Coulomb friction's take off the amplitude's growth;
+        ``guess``, an earlier fit of the same run, seeds the least squares (else four phases are tried)."""
         t, y = np.asarray(t, float), np.asarray(y, float)
         sel = t >= start
         before = float(np.mean(y[~sel])) if np.any(~sel) else float(y[0])
@@ -135,7 +137,7 @@ class OscillationFit:
         if not self.usable_:
             return self
         tau = tw - float(tw.mean())
-        best = self._least_squares(tau, yw, 2 * np.pi * f0, decrement)
+        best = self._least_squares(tau, yw, 2 * np.pi * f0, decrement, getattr(guess, "_p", None))
         dof = tw.size - 6
         cov = float(best.fun @ best.fun / dof) * np.linalg.pinv(best.jac.T @ best.jac)
         se = np.sqrt(np.diag(cov)) * _ar1_inflation(best.fun)
@@ -148,10 +150,12 @@ class OscillationFit:
                                "linear growth rate of the same fit (friction's decrement taken out)", note, dof)
         self.window_ = (float(tw[0]), float(tw[-1]))
         self.amplitude_ = float(np.hypot(best.x[4], best.x[5]))
+        self._p = best.x
         return self
 
     @staticmethod
-    def _least_squares(tau: Array, yw: Array, w0: float, decrement: float):  # type: ignore[no-untyped-def]
+    def _least_squares(tau: Array, yw: Array, w0: float, decrement: float,  # type: ignore[no-untyped-def]
+                       guess: Array | None):
         def model(p: Array) -> Array:
             c0, c1, sig, w, a, b = p
             return c0 + c1 * tau + envelope_factor(sig, decrement, float(np.hypot(a, b)), tau) * (
@@ -159,8 +163,9 @@ class OscillationFit:
 
         amp = float(np.std(yw - np.polyval(np.polyfit(tau, yw, 1), tau))) * np.sqrt(2)
         best = None
-        for phase in (0.0, np.pi / 2, np.pi, 3 * np.pi / 2):
-            p0 = [float(yw.mean()), 0.0, 0.0, w0, amp * np.cos(phase), amp * np.sin(phase)]
+        starts = [list(guess)] if guess is not None else [
+            [float(yw.mean()), 0.0, 0.0, w0, amp * np.cos(ph), amp * np.sin(ph)] for ph in (0.0, np.pi / 2, np.pi, 1.5 * np.pi)]
+        for p0 in starts:
             res = least_squares(lambda p: model(p) - yw, p0, method="lm")
             if best is None or res.cost < best.cost:
                 best = res

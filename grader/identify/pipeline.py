@@ -135,7 +135,7 @@ def _from_oscillation(dataset: Dataset, run: Run, static: Mapping[str, Estimate]
         raise IdentificationError(f"{first.why_not_}; raise Kp until the oscillation grows")
     rough = _coefficient_model(g, fb, kp, B_model, first.omega_.value, Kq.value, Kpot.value)
     c = friction_decrement(rough, kp, static["Fc"].value, first.omega_.value)
-    osc = OscillationFit(a_sat).fit(run.t, run.y, start=command_start(run), decrement=c) if c > 0 else first
+    osc = OscillationFit(a_sat).fit(run.t, run.y, start=command_start(run), decrement=c, guess=first) if c > 0 else first
     x = {"omega": osc.omega_.value, "Kq": Kq.value, "Kpot": Kpot.value}
     se = {"omega": osc.omega_.se, "Kq": Kq.se, "Kpot": Kpot.se if volts else 0.0}
 
