@@ -45,3 +45,5 @@ ITEMS: dict[str, ItemSpec] = {s.name: s for s in (
 #: predictions a rig may not have (e.g. no gain gives 25 % overshoot): they may be answered
 #: "not reachable" (see :mod:`grader.grading.unreachable`)
 MAY_BE_NOT_REACHABLE = frozenset({"Kp_no_overshoot", "Kp_25_overshoot", "ramp_ess_P"})
+#: values read off the instability run: "not identifiable" when it shows no critical oscillation
+MAY_BE_NOT_IDENTIFIABLE = frozenset({"omega_crit", "Kp_crit", "beta_over_Vt", "Kce"})

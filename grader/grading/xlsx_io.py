@@ -20,7 +20,7 @@ from openpyxl import Workbook, load_workbook
 from openpyxl.worksheet.datavalidation import DataValidation
 
 from grader.errors import SubmissionError
-from grader.grading.items import ITEMS, MAY_BE_NOT_REACHABLE
+from grader.grading.items import ITEMS, MAY_BE_NOT_IDENTIFIABLE, MAY_BE_NOT_REACHABLE
 from grader.grading.limits import DEFAULT_LIMITS, Limits
 from grader.grading.results import Student
 from grader.grading.submissions import (
@@ -218,6 +218,7 @@ def read_xlsx(path: Path, *, limits: Limits = DEFAULT_LIMITS) -> Submission:
 
 
 NOT_REACHABLE_HINT = "; if your rig has no such value, write 'not reachable' (or 'none', 'n/a')"
+NOT_IDENTIFIABLE_HINT = "; if your instability run shows no growing oscillation, write 'not identifiable'"
 
 
 def _unit_hint(item: str, gain_unit: str) -> str:
@@ -236,7 +237,8 @@ def _answer_rows(items: list[str], gain_unit: str) -> list[tuple[str, str, str, 
         if spec.kind == "design":
             rows += [(f"{item}.{p}", _design_hint(p, gain_unit), spec.description, spec.kind) for p in DESIGN_PARTS[item]]
         elif spec.kind != "poles":
-            tail = NOT_REACHABLE_HINT if item in MAY_BE_NOT_REACHABLE else ""
+            tail = (NOT_REACHABLE_HINT if item in MAY_BE_NOT_REACHABLE else
+                    NOT_IDENTIFIABLE_HINT if item in MAY_BE_NOT_IDENTIFIABLE else "")
             rows.append((item, _unit_hint(item, gain_unit), spec.description + tail, spec.kind))
     return rows
 

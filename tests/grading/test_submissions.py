@@ -84,6 +84,8 @@ def test_template_lists_every_item_with_units_and_reads_back(tmp_path: Path) -> 
     assert {"info", "students", "answers", "poles", "calibration", "flow", "friction", "runs"} <= set(wb.sheetnames)
     rows = {r[0]: r for r in wb["answers"].iter_rows(min_row=2, values_only=True)}
     assert rows["Kq"][3] == "in^3/s/mA" and rows["pd_design.Kd"][3] == "s" and rows["closed_loop_tf"][3] == "(expression)"
+    assert "'not reachable'" in rows["Kp_25_overshoot"][4] and "'not identifiable'" in rows["Kce"][4]
+    assert "not" not in rows["Kq"][4]
     assert wb["answers"].data_validations.dataValidation
     wb["students"].append(["Ada Lovelace", "1001", "ada", "L01"])
     for r in wb["answers"].iter_rows(min_row=2):
@@ -93,11 +95,15 @@ def test_template_lists_every_item_with_units_and_reads_back(tmp_path: Path) -> 
             r[1].value = 40
         if r[0].value == "Kpot":
             r[1].value = "=A1*2"
+        if r[0].value == "Kce":
+            r[1].value = "Not identifiable"
+    wb["answers"].append(["closed_loop_poles", "not identifiable"])  # poles the data cannot give
     wb.save(path)
     sub = read_submission(path)
     assert sub.answers["Kq"] == "0.0385 in^3/s/mA" and sub.answers["pd_design"] == {"Kp": 40}
     assert isinstance(sub.answers["Kpot"], InvalidAnswer) and "formula" in sub.answers["Kpot"].reason
     assert sub.students[0].name == "Ada Lovelace" and sub.data is None
+    assert sub.answers["Kce"] == "Not identifiable" and sub.answers["closed_loop_poles"] == "not identifiable"
 
 
 def test_xlsx_group_data_sheets_become_a_dataset(tmp_path: Path) -> None:
