@@ -151,6 +151,7 @@ def create_app(service: CheckService, options: WebOptions = WebOptions(), pool: 
             pool.close()
 
     app = FastAPI(title="grader self-check", docs_url=None, redoc_url=None, openapi_url=None, lifespan=lifespan)
+    app.state.pool = pool
     checks = RateLimiter(options.checks_per_minute, options.burst)
     previews = RateLimiter(options.checks_per_minute * 10, options.burst * 10)
     lanes = anyio.CapacityLimiter(options.threads)
