@@ -10,12 +10,20 @@ For a 1.5 s step run at 1 kHz control (Kp = 25, default station) and three effec
   least as accurate, and its time per run (if none down to rtol 1e-10 is, the tightest:
   the ratio is then a lower bound); and the cheapest solve_ivp (rtol 1e-3) for scale;
 * runs/s of the engine for one run and for a batch of 1,000 runs with parameters
-  varied across the batch, and the ratios to solve_ivp.
+  varied across the batch, and the ratios to solve_ivp;
+* the wall time of ``grader diagnose`` on the default dataset (median of five new processes,
+  identified from the dataset and with ``--key``; ``--skip-diagnose`` leaves it out).
 """
 
 from __future__ import annotations
 
+import argparse
+import statistics
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -90,12 +98,35 @@ def bench(name: str, specs: list[str]) -> None:
           f"   ratio {t_ivp * BATCH / t_batch:6.1f}x")
 
 
+def diagnose_times(repeats: int = 5) -> None:
+    """Wall time of ``grader diagnose`` on the default dataset, each a new process as a user runs it."""
+    root = Path(__file__).resolve().parents[1] / "reference_solutions"
+    dataset, key = root / "datasets" / "default", root / "keys" / "default.json"
+    script = Path(sys.executable).with_name("grader")  # the console script, as users run it
+    cmd = [str(script)] if script.exists() else [sys.executable, "-m", "grader.cli"]
+    print(f"grader diagnose on the default dataset, wall time of a new process, median of {repeats}:")
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, extra in (("identified from the dataset", []), ("with --key", ["--key", str(key)])):
+            times = []
+            for _ in range(repeats):
+                t0 = time.perf_counter()
+                subprocess.run([*cmd, "diagnose", str(dataset), "-o", tmp, *extra],
+                               check=True, stdout=subprocess.DEVNULL)
+                times.append(time.perf_counter() - t0)
+            print(f"  {label:28s} {statistics.median(times):5.2f} s  (min {min(times):.2f}, max {max(times):.2f})")
+
+
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--skip-diagnose", action="store_true", help="do not time grader diagnose")
+    args = ap.parse_args()
     print("Rig engine benchmark: 1.5 s step run, 1 kHz control, Kp = 25, default station; one process, CPU times")
     warm = load_station("default").params()
     simulate_rig(warm, Controller(25), np.arange(0.0, 0.01, 0.001), np.zeros(10))  # load the compiled engine
     for name, specs in MODELS.items():
         bench(name, specs)
+    if not args.skip_diagnose:
+        diagnose_times()
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ own ``commands`` module; a verb handler returns the process exit code. Any
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib
 import sys
 from collections.abc import Sequence
@@ -59,5 +60,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
 
 
+def entry() -> None:
+    """The ``grader`` console script: :func:`main`, then exit without the interpreter's last full
+    garbage collections (``gc.freeze``; the process ends and the system frees its memory): 0.2 s
+    less after a diagnosis, whose simulator and plots leave many objects behind."""
+    code = main()
+    gc.freeze()
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

@@ -66,7 +66,7 @@ def cross_validate(fitter: BatchFitter, states: Sequence[FitState], *, test: Bat
     lengths = [r.n for r in fitter.runs]
     n = len(lengths)
     folds = [fold_state(s, i, lengths) for s in states for i in range(n)]
-    folds = fitter.refine(folds, rounds=rounds, dampings=(1.0,))
+    folds = fitter.refine(folds, rounds=rounds, dampings=(1.0,), final_jacobian=False)
     jobs = [(f.candidate, f.theta, (k % n,)) for k, f in enumerate(folds)]
     res = (test or fitter).residuals(jobs)
     out = []

@@ -3,9 +3,10 @@
 A fit is a candidate on a set of runs (all of them, or the training runs of a
 cross-validation fold). Its objective at θ is Σ NRMSE_run² over its runs: the residual
 vector ``(y_model − y)/(scale·√n)`` stacked over those runs. Every round evaluates, for
-every fit still improving, Levenberg–Marquardt trial steps (one per damping factor) *and*
-the forward-difference Jacobian at each trial, in one batched call; the best trial is
-kept if it lowers the cost. Starting points of the all-runs fits come from a profile: the
+every fit still improving, the Levenberg–Marquardt trial steps (one per damping factor) in
+one batched call and keeps the best if it lowers the cost; then, in a second, the
+forward-difference Jacobian at each accepted step only (a Jacobian per trial would cost three
+times as many simulations for the same path). Starting points of the all-runs fits come from a profile: the
 linear parameters fitted at each magnitude of a coarse grid over the effect's realistic range.
 """
 
@@ -81,6 +82,8 @@ class BatchFitter:
 
     def residuals(self, jobs: Sequence[tuple[Candidate, Array, tuple[int, ...]]]) -> list[Array]:
         """Stacked residual of each (candidate, θ, runs) job."""
+        if not jobs:
+            return []
         requests = [(pt, i) for c, th, idx in jobs for pt in [c.point(self.base, th)] for i in idx]
         ys = iter(self.sim(requests))
         out = []
@@ -104,7 +107,7 @@ class BatchFitter:
     def profile(self, starts: Sequence[tuple[Candidate, Array]], owner: Sequence[int], *, rounds: int) -> list[FitState]:
         """The linear parameters fitted at each start (its magnitudes held; Kce from the best of a coarse
         line first); the best start of each owner is returned, ready to fit all coordinates."""
-        states = self.refine(self._line(list(starts)), rounds=rounds, dampings=(1.0,))
+        states = self.refine(self._line(list(starts)), rounds=rounds, dampings=(1.0,), final_jacobian=False)
         best: dict[int, FitState] = {}
         for s, k in zip(states, owner):
             if k not in best or s.cost < best[k].cost:
@@ -138,59 +141,63 @@ class BatchFitter:
             out.append((s.lam * f, np.clip(s.theta + step, lo, hi)))
         return out
 
-    def round(self, states: Sequence[FitState], dampings: Sequence[float]) -> list[FitState]:
-        """One round: Jacobians where missing, else trial steps with their Jacobians."""
-        jobs: list[tuple[Candidate, Array, tuple[int, ...]]] = []
-        plan: list[tuple[int, float, Array, bool]] = []  # state, λ, θ, is-a-trial
-        for k, s in enumerate(states):
-            if s.done:
-                continue
-            if s.jac is None:
-                plan.append((k, s.lam, s.theta, False))
-                jobs += [(s.candidate, t, s.runs) for t in _probe(s.candidate, s.theta, s.free)]
-                continue
-            for lam, th in self._trials(s, dampings):
-                plan.append((k, lam, th, True))
-                jobs += [(s.candidate, t, s.runs) for t in [th, *_probe(s.candidate, th, s.free)]]
-        return self._update(list(states), plan, self.residuals(jobs))
-
-    @staticmethod
-    def _update(states: list[FitState], plan: list[tuple[int, float, Array, bool]], res: list[Array]) -> list[FitState]:
-        new, pos = list(states), 0
-        best: dict[int, FitState] = {}
-        for k, lam, th, trial in plan:
+    def _jacobians(self, states: list[FitState], which: Sequence[int], *, halve_damping: bool = False) -> None:
+        """Fill in the Jacobian of ``states[k]`` at its θ for each k of ``which`` (one batched evaluation);
+        ``halve_damping`` also halves λ, as an accepted step does."""
+        jobs = [(states[k].candidate, t, states[k].runs) for k in which
+                for t in _probe(states[k].candidate, states[k].theta, states[k].free)]
+        res, pos = self.residuals(jobs), 0
+        for k in which:
             s = states[k]
-            n = s.free
-            base = res[pos] if trial else s.res
-            probes = res[pos + trial:pos + trial + n]
-            pos += n + trial
-            cand = replace(s, theta=th, res=base, jac=_jacobian(s.candidate, th, base, probes), lam=max(lam * 0.5, 1e-6))
-            if not trial:
-                new[k] = cand
-            elif k not in best or cand.cost < best[k].cost:
+            lam = max(s.lam * 0.5, 1e-6) if halve_damping else s.lam
+            states[k] = replace(s, jac=_jacobian(s.candidate, s.theta, s.res, res[pos:pos + s.free]), lam=lam)
+            pos += s.free
+
+    def round(self, states: Sequence[FitState], dampings: Sequence[float], *, jacobian: bool = True) -> list[FitState]:
+        """One Levenberg–Marquardt round for every state not done (each needs its Jacobian): the trial
+        steps in one batched evaluation, the best kept if it lowers the cost; then, with ``jacobian``,
+        the Jacobians at the accepted steps (else those states carry ``jac=None``)."""
+        jobs: list[tuple[Candidate, Array, tuple[int, ...]]] = []
+        plan: list[tuple[int, float, Array]] = []
+        for k, s in enumerate(states):
+            if not s.done:
+                for lam, th in self._trials(s, dampings):
+                    plan.append((k, lam, th))
+                    jobs.append((s.candidate, th, s.runs))
+        new = list(states)
+        best: dict[int, FitState] = {}
+        for (k, lam, th), res in zip(plan, self.residuals(jobs)):
+            cand = replace(states[k], theta=th, res=res, jac=None, lam=max(lam * 0.5, 1e-6))
+            if k not in best or cand.cost < best[k].cost:
                 best[k] = cand
+        moved = []
         for k, cand in best.items():
             s = states[k]
             if cand.cost < s.cost:
                 new[k] = replace(cand, done=(s.cost - cand.cost) < CONVERGED * s.cost)
+                moved.append(k)
             else:
                 new[k] = replace(s, lam=s.lam * 16.0, done=s.lam > 1e4)
+        if jacobian:
+            self._jacobians(new, moved)
         return new
 
-    def refine(self, states: Sequence[FitState], *, rounds: int, dampings: Sequence[float]) -> list[FitState]:
-        """Up to ``rounds`` rounds (Jacobians first where missing); Jacobians end at the final θ."""
+    def refine(self, states: Sequence[FitState], *, rounds: int, dampings: Sequence[float],
+               final_jacobian: bool = True) -> list[FitState]:
+        """Up to ``rounds`` rounds (Jacobians first where missing). With ``final_jacobian`` every Jacobian
+        ends at the final θ; without, a state whose last step moved it carries ``jac=None`` (for callers
+        that keep only θ and the residual)."""
         out = list(states)
-        if any(s.jac is None for s in out):
-            out = self.round(out, dampings)
-        for _ in range(rounds):
+        self._jacobians(out, [k for k, s in enumerate(out) if s.jac is None], halve_damping=True)
+        for r in range(rounds):
             if all(s.done for s in out):
                 break
-            out = self.round(out, dampings)
+            out = self.round(out, dampings, jacobian=final_jacobian or r < rounds - 1)
         return out
 
-    def fit(self, states: Sequence[FitState], *, rounds: int) -> list[FitState]:
-        """All coordinates: Levenberg–Marquardt with three dampings per round."""
-        return self.refine(states, rounds=rounds, dampings=(0.25, 1.0, 4.0))
+    def fit(self, states: Sequence[FitState], *, rounds: int, final_jacobian: bool = True) -> list[FitState]:
+        """All coordinates: Levenberg–Marquardt with three dampings per round (see :meth:`refine`)."""
+        return self.refine(states, rounds=rounds, dampings=(0.25, 1.0, 4.0), final_jacobian=final_jacobian)
 
 
 def grid_starts(candidates: Sequence[Candidate], theta0: Sequence[Array] | None = None

@@ -5,9 +5,13 @@ from __future__ import annotations
 
 import base64
 import html
+import importlib
 import multiprocessing as mp
 import os
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Iterator
+from concurrent.futures import BrokenExecutor, ProcessPoolExecutor
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -122,27 +126,96 @@ def _plot(job: tuple[Any, ...]) -> bytes:
     return plots.run_figure(*job[1:]) if job[0] == "run" else plots.candidates_figure(*job[1:])
 
 
-def _render_plots(analysis: Analysis) -> dict[str, bytes]:
-    """Every PNG of the report, rendered on all cores where processes fork (matplotlib is
-    single-threaded and the figures are independent; the bytes do not depend on the split). The
-    workers import matplotlib themselves, at the same time: the diagnosis never needs it."""
+@dataclass(frozen=True)
+class PlotHelpers:
+    """Forked helper processes and the index of the next figure to draw, shared with them."""
+
+    pool: ProcessPoolExecutor
+    size: int
+    next_figure: Any  # multiprocessing.Value("i")
+
+
+_NEXT: Any = None  # in a helper: its PlotHelpers.next_figure
+
+
+def _warm(next_figure: Any) -> None:
+    global _NEXT
+    _NEXT = next_figure
+    importlib.import_module("grader.gap.plots")  # matplotlib, imported while the parent still works
+
+
+def _claim(next_figure: Any) -> int:
+    with next_figure.get_lock():
+        k = int(next_figure.value)
+        next_figure.value = k + 1
+    return k
+
+
+def _drain(jobs: list[tuple[Any, ...]], next_figure: Any = None) -> dict[int, bytes]:
+    """Draw figures in the order claimed, until none is left: {index: PNG}."""
+    counter = _NEXT if next_figure is None else next_figure
+    out = {}
+    while (k := _claim(counter)) < len(jobs):
+        out[k] = _plot(jobs[k])
+    return out
+
+
+@contextmanager
+def plot_helpers() -> Iterator[PlotHelpers | None]:
+    """Helper processes for the report's figures, forked now (one per core but this one's, at most
+    three) and importing matplotlib at once: started before the diagnosis, they are ready when it ends
+    (:func:`grader.gap.diagnose.analyse` never needs matplotlib). None where fork or a second core is missing."""
+    cpus = os.cpu_count() or 1
+    if cpus < 2 or "fork" not in mp.get_all_start_methods():
+        yield None
+        return
+    ctx = mp.get_context("fork")
+    size, next_figure = min(cpus - 1, 3), ctx.Value("i", 0)
+    with ProcessPoolExecutor(size, mp_context=ctx, initializer=_warm, initargs=(next_figure,)) as pool:
+        for _ in range(size):
+            pool.submit(int)  # start every helper now
+        yield PlotHelpers(pool, size, next_figure)
+
+
+def _render_plots(analysis: Analysis, helpers: PlotHelpers | None) -> dict[str, bytes]:
+    """Every PNG of the report, drawn by this process and the ``helpers`` together, each claiming the next
+    figure not yet claimed (matplotlib is single-threaded and the figures are independent; the bytes do
+    not depend on who draws which). A figure a helper took with it when it died is drawn here."""
     d = analysis.diagnosis
     jobs: dict[str, tuple[Any, ...]] = {
         f"run_{r.name}.png": ("run", r, s, yl, ya, _augmented(d))
         for r, s, yl, ya in zip(analysis.runs, analysis.segments, analysis.y_linear, analysis.y_augmented)}
     jobs["candidates.png"] = ("candidates", d)
-    workers = min(len(jobs), os.cpu_count() or 1)
-    if workers < 2 or "fork" not in mp.get_all_start_methods():
-        return {name: _plot(job) for name, job in jobs.items()}
-    with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as pool:
-        return dict(zip(jobs, pool.map(_plot, jobs.values())))
+    todo = list(jobs.values())
+    if helpers is None:
+        drawn = {k: _plot(job) for k, job in enumerate(todo)}
+    else:
+        helpers.next_figure.value = 0
+        offered = []
+        try:
+            offered += [helpers.pool.submit(_drain, todo) for _ in range(helpers.size)]
+        except BrokenExecutor:  # a helper died earlier: no more help
+            pass
+        drawn = _drain(todo, helpers.next_figure)
+        for future in offered:
+            try:
+                drawn.update(future.result())
+            except BrokenExecutor:
+                pass
+        drawn.update({k: _plot(job) for k, job in enumerate(todo) if k not in drawn})
+    return {name: drawn[k] for k, name in enumerate(jobs)}
 
 
-def write_outputs(analysis: Analysis, out: Path) -> list[Path]:
-    """Write diagnosis.json, report.html and the PNGs into ``out``; returns the paths written."""
+def write_outputs(analysis: Analysis, out: Path, *, helpers: PlotHelpers | None = None) -> list[Path]:
+    """Write diagnosis.json, report.html and the PNGs into ``out``; returns the paths written. The figures
+    are drawn with the given :func:`plot_helpers` (default: helpers started now)."""
     out.mkdir(parents=True, exist_ok=True)
     d = analysis.diagnosis
-    images = _render_plots(analysis)
+    if helpers is None:
+        with plot_helpers() as started:
+            images = _render_plots(analysis, started)
+    else:
+        images = _render_plots(analysis, helpers)
     written = []
     for name, data in images.items():
         (out / name).write_bytes(data)

@@ -54,7 +54,7 @@ def search(runs: Sequence[GapRun], base: RigParams, candidates: Sequence[Candida
     ``theta0`` are the profile's starting points (default: the baseline, zero magnitudes)."""
     short, middle, full = (_fitter(runs, base, w, executor) for w in (PROFILE_WINDOW, FIRST_WINDOW, None))
     states = short.profile(*grid_starts(candidates, theta0), rounds=PROFILE_ROUNDS)
-    states = middle.fit(middle.rebase(states), rounds=FIRST_ROUNDS)
+    states = middle.fit(middle.rebase(states), rounds=FIRST_ROUNDS, final_jacobian=False)
     states = full.fit(full.rebase(states), rounds=FULL_ROUNDS)
     test = _fitter(runs, base, FIRST_WINDOW, executor, only_instability=True)
     return SearchResult(states, cross_validate(full, states, test=test))

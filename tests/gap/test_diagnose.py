@@ -11,7 +11,7 @@ import jsonschema
 import pytest
 
 from grader.gap.diagnose import Analysis, analyse, diagnose_dataset
-from grader.gap.report import write_outputs
+from grader.gap.report import _render_plots, plot_helpers, write_outputs
 from grader.gap.schema import Diagnosis, diagnosis_json, json_schema
 from grader.gap.summary import effect_name
 
@@ -81,6 +81,22 @@ def test_outputs_are_byte_identical_for_the_same_input(analysed: Analysed, make:
     write_outputs(again, tmp_path / "b")
     for name in ("report.html", "candidates.png", "run_step_kp10.png"):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+
+
+def test_figures_do_not_depend_on_who_draws_them(analysed: Analysed) -> None:
+    """Helpers and this process share the figures; the bytes equal those drawn here alone, and a helper
+    that dies (killed, out of memory) costs nothing: what it held is drawn here."""
+    first = analysed("coulomb_friction", FRICTION)
+    alone = _render_plots(first, None)
+    with plot_helpers() as helpers:
+        if helpers is None:
+            pytest.skip("no fork or a single core: the figures are drawn in this process only")
+        assert _render_plots(first, helpers) == alone
+        for proc in list(helpers.pool._processes.values()):  # noqa: SLF001 - the test kills a helper
+            proc.kill()
+            proc.join()
+        assert _render_plots(first, helpers) == alone
+    assert list(alone) == [*(f"run_{r.name}.png" for r in first.runs), "candidates.png"]
 
 
 def test_diagnose_dataset_writes_report_and_plots(make: MakeDataset, tmp_path: Path) -> None:
