@@ -23,8 +23,8 @@ from numpy.typing import NDArray
 
 from grader.gap.runs import GapRun
 from grader.model.effects import EffectSet
-from grader.model.params import RigParams
-from grader.model.rig import PositionBatch, position_batch
+from grader.model.params import Controller, RigParams
+from grader.model.rig import position_batch
 
 Array = NDArray[np.float64]
 
@@ -47,27 +47,35 @@ def worker(enabled: bool = True) -> Iterator[Executor | None]:
         yield ex
 
 
+def _positions(points: Sequence[Point], which: Sequence[int], runs: Sequence[tuple[Controller, Array, Array]]
+               ) -> list[Array]:
+    """x_k [in] of each point on run ``which[j]``; ``runs`` holds each run's (controller, command, noise)."""
+    return position_batch([pt.params for pt in points], [runs[i][0] for i in which], [pt.effects for pt in points],
+                          [runs[i][1] for i in which], [runs[i][2] for i in which]).run()
+
+
 class Backend:
     """Simulates requests (see module docstring)."""
 
     def __init__(self, runs: Sequence[GapRun], *, executor: Executor | None = None) -> None:
         self.runs = list(runs)
         self.executor = executor
+        self._inputs = [(r.controller, r.r, r.noise) for r in self.runs]
 
     def __call__(self, requests: Sequence[tuple[Point, int]]) -> list[Array]:
-        """x_k [in] for each request, in order."""
+        """x_k [in] for each request, in order. With an executor, every other request is simulated
+        there: only the points and run numbers travel (the worker builds its own batch)."""
         if self.executor is None or len(requests) < 2:
-            return self._batch(requests).run()
-        pending = self.executor.submit(self._batch(requests[1::2]).run)  # every other request there
-        here = self._batch(requests[::2]).run()
+            return self._here(requests)
+        there = requests[1::2]
+        pending = self.executor.submit(_positions, [pt for pt, _ in there], [i for _, i in there], self._inputs)
+        here = self._here(requests[::2])
         out: list[Array] = [np.empty(0)] * len(requests)
         out[::2], out[1::2] = here, pending.result()
         return out
 
-    def _batch(self, requests: Sequence[tuple[Point, int]]) -> PositionBatch:
-        runs = [self.runs[i] for _, i in requests]
-        return position_batch([pt.params for pt, _ in requests], [r.controller for r in runs],
-                              [pt.effects for pt, _ in requests], [r.r for r in runs], [r.noise for r in runs])
+    def _here(self, requests: Sequence[tuple[Point, int]]) -> list[Array]:
+        return _positions([pt for pt, _ in requests], [i for _, i in requests], self._inputs)
 
     def all_runs(self, points: Sequence[Point]) -> list[list[Array]]:
         """x for every point on every run: ``result[p][i]``."""

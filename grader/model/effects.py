@@ -219,6 +219,10 @@ class EffectSet:
     def __hash__(self) -> int:
         return hash(tuple((n, tuple(p.items())) for n, p in self.values.items()))
 
+    def __reduce__(self) -> tuple[type[EffectSet], tuple[dict[str, dict[str, float]]]]:
+        """Picklable (the read-only views are not): sent to worker processes."""
+        return EffectSet, ({n: dict(p) for n, p in self.values.items()},)
+
     def __contains__(self, name: object) -> bool:
         return name in self.values
 

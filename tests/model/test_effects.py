@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pickle
+
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -81,6 +83,14 @@ def test_repeated_effect_merges_parameters_but_not_the_same_one_twice() -> None:
     assert (e.value("valve_dynamics", "tau"), e.value("valve_dynamics", "order")) == (0.002, 2.0)
     with pytest.raises(SimulationError, match="given twice"):
         EffectSet.parse(["valve_dynamics:tau=2ms", "valve_dynamics:tau=3ms"])
+
+
+def test_an_effect_set_survives_pickling_for_worker_processes() -> None:
+    e = EffectSet.parse(["valve_dynamics:tau=2ms,order=2", "coulomb_friction:Fc=3lbf"])
+    back = pickle.loads(pickle.dumps(e))
+    assert back == e and hash(back) == hash(e) and back.names == e.names
+    with pytest.raises(TypeError):  # still read-only after the trip
+        back.values["coulomb_friction"]["Fc"] = 1.0  # type: ignore[index]
 
 
 def test_constructor_checks_names_parameters_and_ranges() -> None:
