@@ -91,6 +91,8 @@ def _start_from_oscillation(runs: Sequence[GapRun], p: RigParams) -> tuple[RigPa
     run = inst[0]
     try:
         osc = OscillationFit().fit(run.t, run.y, start=run.start)
+        if not osc.usable_:
+            return p, f"typical β/Vt and Kce ({osc.why_not_})"
         bv, kce = coefficient_match(omega=osc.omega_.value, kp_crit=run.controller.Kp, A=p.A, M=p.M, Kamp=p.Kamp,
                                     Kq=p.Kq, k_fb=p.k_fb)
         p = match_sampled_poles(p.with_(beta_over_Vt=bv, Kce=kce), kp=run.controller.Kp, sigma=osc.sigma_.value,

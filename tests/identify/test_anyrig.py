@@ -40,3 +40,14 @@ def test_rig_is_keyed_graded_and_recovered(seed: int, k: int, feedback: str, not
     assert ("Kp_25_overshoot" in out.not_reachable) == not_reachable
     for name, bound in BENCH.BOUNDS.items():
         assert out.errors[name] <= bound, f"{name} off by {100 * out.errors[name]:.2f} %"
+
+
+def test_a_rig_whose_oscillation_cannot_be_read_is_keyed_graded_and_diagnosed() -> None:
+    """Seed 7, rig 5 (inches): friction stops the instability run after 7 cycles; the key says
+    β/Vt and Kce are not identifiable, and every verb, diagnose included, still exits 0."""
+    out = BENCH.one_rig(5, 7, True)
+    assert out.feedback == "inches" and not out.failure, out.failure
+    assert out.not_identifiable
+    assert out.exits == {"key": 0, "grade": 0, "check": 0, "diagnose": 0}
+    assert out.not_correct == []
+    assert out.errors["Kpot"] <= BENCH.BOUNDS["Kpot"] and out.errors["Kq"] <= BENCH.BOUNDS["Kq"]

@@ -1,0 +1,35 @@
+"""The diagnosis' linear baseline when the instability run cannot be read."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from grader.gap.baseline import _start_from_oscillation
+from grader.gap.runs import GapRun
+from grader.model.params import Controller
+from grader.stations import load_station
+
+
+def _instability(cycles_alive: float) -> GapRun:
+    """A 25 Hz oscillation after a 0.1 in step at 0.1 s that friction stops after ``cycles_alive`` cycles."""
+    t = np.arange(0.0, 1.5, 0.001)
+    tau = np.clip(t - 0.1, 0.0, None)
+    alive = np.clip(1.0 - tau * 25.0 / cycles_alive, 0.0, None)
+    y = np.where(t >= 0.1, 0.1 + 0.01 * alive * np.sin(2 * np.pi * 25 * tau), 0.0)
+    y = np.round(y / 0.0005) * 0.0005  # a coarse ADC: the dead tail sits on one count
+    r = np.where(t >= 0.1, 0.1, 0.0)
+    return GapRun("instability", "instability", Controller(60), t, r, y, None, 0.1, float(np.std(y)), np.zeros(t.size))
+
+
+def test_an_oscillation_that_dies_out_gives_the_typical_start_and_says_why() -> None:
+    p = load_station("default").params()
+    start, why = _start_from_oscillation([_instability(4)], p)
+    assert start == p and why.startswith("typical β/Vt and Kce (the instability run shows")
+    assert "fewer than 8" in why
+
+
+def test_a_lasting_oscillation_is_read() -> None:
+    p = load_station("default").params()
+    start, why = _start_from_oscillation([_instability(1e9)], p)
+    assert why == "oscillation of run instability at Kp = 60"
+    assert start.beta_over_Vt != p.beta_over_Vt and start.Kce != p.Kce
