@@ -7,11 +7,14 @@ from __future__ import annotations
 
 import importlib.util
 import sys
+from dataclasses import replace
 from types import ModuleType
 
 import pytest
 
-from grader.stations import repo_root
+from grader.model.params import Controller
+from grader.stations import Station, repo_root
+from grader.synth import RunPlan
 
 
 def _benchmark() -> ModuleType:
@@ -42,9 +45,17 @@ def test_rig_is_keyed_graded_and_recovered(seed: int, k: int, feedback: str, not
         assert out.errors[name] <= bound, f"{name} off by {100 * out.errors[name]:.2f} %"
 
 
-def test_a_rig_whose_oscillation_cannot_be_read_is_keyed_graded_and_diagnosed() -> None:
-    """Seed 7, rig 5 (inches): friction stops the instability run after 7 cycles; the key says
-    β/Vt and Kce are not identifiable, and every verb, diagnose included, still exits 0."""
+def test_a_rig_whose_oscillation_cannot_be_read_is_keyed_graded_and_diagnosed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Seed 7, rig 5 (inches) with its instability run recorded at Kp = 79 V/V, where friction stops
+    the oscillation after 7 cycles (a student who did not raise the gain further): the key says β/Vt
+    and Kce are not identifiable, and every verb, diagnose included, still exits 0."""
+    lab_runs = BENCH.lab_runs
+
+    def marginal(st: Station) -> list[RunPlan]:
+        scale = 1.0 if st.params().feedback == "volts" else st.params().Kpot
+        return [replace(r, controller=Controller(79.0 * scale)) if r.kind == "instability" else r for r in lab_runs(st)]
+
+    monkeypatch.setattr(BENCH, "lab_runs", marginal)
     out = BENCH.one_rig(5, 7, True)
     assert out.feedback == "inches" and not out.failure, out.failure
     assert out.not_identifiable
