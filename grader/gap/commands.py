@@ -26,15 +26,16 @@ def _effects(text: str | None, known: tuple[str, ...] | None = None) -> list[str
 
 
 def _diagnose(args: argparse.Namespace) -> int:
-    from grader.gap.diagnose import analyse
-    from grader.gap.report import plot_helpers, write_outputs
-    from grader.gap.summary import summary
+    from grader.gap.figures import plot_helpers
 
     t0 = time.perf_counter()
     out = output_folder(args.out)
-    effects = _effects(args.effects)
-    with plot_helpers() as helpers:  # they import matplotlib while the diagnosis runs
-        analysis = analyse(args.dataset, key=args.key, effects=effects, second=args.second)
+    with plot_helpers() as helpers:  # forked first: they import matplotlib while this process imports scipy
+        from grader.gap.diagnose import analyse
+        from grader.gap.report import write_outputs
+        from grader.gap.summary import summary
+
+        analysis = analyse(args.dataset, key=args.key, effects=_effects(args.effects), second=args.second)
         paths = write_outputs(analysis, out, helpers=helpers)
     print(summary(analysis.diagnosis))
     print(f"\nwrote {paths[0]}, {paths[1]} and {len(paths) - 2} plots in {time.perf_counter() - t0:.1f} s")

@@ -5,21 +5,22 @@ from __future__ import annotations
 
 import base64
 import html
-import importlib
-import multiprocessing as mp
-import os
-from collections.abc import Iterator
-from concurrent.futures import BrokenExecutor, ProcessPoolExecutor
-from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+import numpy as np
+from numpy.typing import NDArray
+
+from grader.gap.figures import CandidatesFigure, Job, PlotHelpers, RunFigure, draw_all, plot_helpers
+from grader.gap.runs import GapRun
 from grader.gap.schema import Diagnosis, diagnosis_json
+from grader.gap.segments import Segment
 from grader.gap.summary import READOFF_NAMES, combination, effect_name, param_text, show, summary
 
 if TYPE_CHECKING:
     from grader.gap.diagnose import Analysis
+
+Array = NDArray[np.float64]
 
 _CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:2rem auto;max-width:60rem;
@@ -119,96 +120,53 @@ noise σ ≈ {show(d.noise.sigma.value, "in")} · grader {html.escape(d.generate
 """
 
 
-def _plot(job: tuple[Any, ...]) -> bytes:
-    """One PNG: ``("run", run, segments, y_linear, y_augmented, effect)`` or ``("candidates", diagnosis)``."""
-    from grader.gap import plots  # matplotlib: imported where the figures are drawn
-
-    return plots.run_figure(*job[1:]) if job[0] == "run" else plots.candidates_figure(*job[1:])
-
-
-@dataclass(frozen=True)
-class PlotHelpers:
-    """Forked helper processes and the index of the next figure to draw, shared with them."""
-
-    pool: ProcessPoolExecutor
-    size: int
-    next_figure: Any  # multiprocessing.Value("i")
+def run_title(run: GapRun) -> str:
+    """Run name, kind (unless the name already says it) and gains: "instability: Kp = 58"."""
+    c = run.controller
+    gains = f"Kp = {c.Kp:g}" + (f", Ki = {c.Ki:g}" if c.Ki else "") + (f", Kd = {c.Kd:g}" if c.Kd else "")
+    kind = "" if run.kind.lower() in run.name.lower() else f" ({run.kind} run)"
+    return f"{run.name}{kind}: {gains}"
 
 
-_NEXT: Any = None  # in a helper: its PlotHelpers.next_figure
+def bands(run: GapRun, segs: list[Segment]) -> tuple[tuple[str, float, float], ...]:
+    """The non-empty segments as shaded bands (name, t0 [s], t1 [s]), each from the step time on."""
+    out = []
+    for s in segs:
+        if s.i1 <= s.i0:
+            continue
+        t0, t1 = max(float(run.t[s.i0]), run.start), float(run.t[s.i1 - 1])
+        if t1 > t0:
+            out.append((s.name, t0, t1))
+    return tuple(out)
 
 
-def _warm(next_figure: Any) -> None:
-    global _NEXT
-    _NEXT = next_figure
-    importlib.import_module("grader.gap.plots")  # matplotlib, imported while the parent still works
+def run_job(run: GapRun, segs: list[Segment], y_lin: Array, y_aug: Array, effect: str) -> RunFigure:
+    """What the run's figure shows, with the augmented model labelled by its ``effect``."""
+    label = f"with {effect_name(effect)}" if effect != "none" else "linear, re-fitted"
+    return RunFigure(run.t, run.r, run.y, y_lin, y_aug, run_title(run), label, run.start, bands(run, segs))
 
 
-def _claim(next_figure: Any) -> int:
-    with next_figure.get_lock():
-        k = int(next_figure.value)
-        next_figure.value = k + 1
-    return k
-
-
-def _drain(jobs: list[tuple[Any, ...]], next_figure: Any = None) -> dict[int, bytes]:
-    """Draw figures in the order claimed, until none is left: {index: PNG}."""
-    counter = _NEXT if next_figure is None else next_figure
-    out = {}
-    while (k := _claim(counter)) < len(jobs):
-        out[k] = _plot(jobs[k])
-    return out
-
-
-@contextmanager
-def plot_helpers() -> Iterator[PlotHelpers | None]:
-    """Helper processes for the report's figures, forked now (one per core but this one's, at most
-    three) and importing matplotlib at once: started before the diagnosis, they are ready when it ends
-    (:func:`grader.gap.diagnose.analyse` never needs matplotlib). None where fork or a second core is missing."""
-    cpus = os.cpu_count() or 1
-    if cpus < 2 or "fork" not in mp.get_all_start_methods():
-        yield None
-        return
-    ctx = mp.get_context("fork")
-    size, next_figure = min(cpus - 1, 3), ctx.Value("i", 0)
-    with ProcessPoolExecutor(size, mp_context=ctx, initializer=_warm, initargs=(next_figure,)) as pool:
-        for _ in range(size):
-            pool.submit(int)  # start every helper now
-        yield PlotHelpers(pool, size, next_figure)
+def candidates_job(d: Diagnosis) -> CandidatesFigure:
+    """What the candidates' figure shows."""
+    c = d.candidates
+    return CandidatesFigure(tuple(effect_name(x.effect) for x in c), tuple(x.shrink for x in c),
+                            tuple(x.heldout_nrmse_after for x in c), tuple(x.effect == d.verdict.effect for x in c),
+                            effect_name(d.verdict.effect))
 
 
 def _render_plots(analysis: Analysis, helpers: PlotHelpers | None) -> dict[str, bytes]:
-    """Every PNG of the report, drawn by this process and the ``helpers`` together, each claiming the next
-    figure not yet claimed (matplotlib is single-threaded and the figures are independent; the bytes do
-    not depend on who draws which). A figure a helper took with it when it died is drawn here."""
+    """Every PNG of the report by file name, drawn by the ``helpers`` (see :func:`draw_all`)."""
     d = analysis.diagnosis
-    jobs: dict[str, tuple[Any, ...]] = {
-        f"run_{r.name}.png": ("run", r, s, yl, ya, _augmented(d))
+    jobs: dict[str, Job] = {
+        f"run_{r.name}.png": run_job(r, s, yl, ya, _augmented(d))
         for r, s, yl, ya in zip(analysis.runs, analysis.segments, analysis.y_linear, analysis.y_augmented)}
-    jobs["candidates.png"] = ("candidates", d)
-    todo = list(jobs.values())
-    if helpers is None:
-        drawn = {k: _plot(job) for k, job in enumerate(todo)}
-    else:
-        helpers.next_figure.value = 0
-        offered = []
-        try:
-            offered += [helpers.pool.submit(_drain, todo) for _ in range(helpers.size)]
-        except BrokenExecutor:  # a helper died earlier: no more help
-            pass
-        drawn = _drain(todo, helpers.next_figure)
-        for future in offered:
-            try:
-                drawn.update(future.result())
-            except BrokenExecutor:
-                pass
-        drawn.update({k: _plot(job) for k, job in enumerate(todo) if k not in drawn})
-    return {name: drawn[k] for k, name in enumerate(jobs)}
+    jobs["candidates.png"] = candidates_job(d)
+    return dict(zip(jobs, draw_all(list(jobs.values()), helpers)))
 
 
 def write_outputs(analysis: Analysis, out: Path, *, helpers: PlotHelpers | None = None) -> list[Path]:
     """Write diagnosis.json, report.html and the PNGs into ``out``; returns the paths written. The figures
-    are drawn with the given :func:`plot_helpers` (default: helpers started now)."""
+    are drawn by the given :func:`~grader.gap.figures.plot_helpers` (default: helpers started now)."""
     out.mkdir(parents=True, exist_ok=True)
     d = analysis.diagnosis
     if helpers is None:

@@ -11,7 +11,8 @@ import jsonschema
 import pytest
 
 from grader.gap.diagnose import Analysis, analyse, diagnose_dataset
-from grader.gap.report import _render_plots, plot_helpers, write_outputs
+from grader.gap.figures import plot_helpers
+from grader.gap.report import _render_plots, write_outputs
 from grader.gap.schema import Diagnosis, diagnosis_json, json_schema
 from grader.gap.summary import effect_name
 

@@ -13,8 +13,8 @@ from matplotlib.figure import Figure
 from matplotlib.text import Text
 
 from grader.gap.diagnose import Analysis
-from grader.gap.plots import draw_run, run_title
-from grader.gap.report import render_html
+from grader.gap.plots import draw_run
+from grader.gap.report import render_html, run_job, run_title
 from grader.gap.runs import GapRun
 from grader.gap.segments import segments_of
 from grader.model.params import Controller
@@ -32,7 +32,7 @@ def _oscillating_run() -> GapRun:
 
 def _figure(run: GapRun) -> Figure:
     segs = segments_of(run, 0.0004)
-    fig = draw_run(run, segs, run.y * 1.02, run.y * 0.995, "coulomb_friction")
+    fig = draw_run(run_job(run, segs, run.y * 1.02, run.y * 0.995, "coulomb_friction"))
     fig.draw_without_rendering()
     return fig
 
