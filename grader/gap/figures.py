@@ -9,6 +9,7 @@ imports nothing but the standard library and numpy's typing at load.
 
 from __future__ import annotations
 
+import gc
 import importlib
 import multiprocessing as mp
 import os
@@ -75,6 +76,8 @@ def _warm(next_figure: Any) -> None:
     global _NEXT
     _NEXT = next_figure
     importlib.import_module("grader.gap.plots")  # matplotlib, imported while the parent still works
+    gc.freeze()  # what is imported stays: later collections skip it
+    gc.enable()  # figures leave cyclic garbage (the parent may have paused the collector)
 
 
 def _claim(next_figure: Any) -> int:

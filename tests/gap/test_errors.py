@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import json
 import shutil
 from collections.abc import Callable
@@ -10,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from grader.cli import main
+from grader.errors import DiagnosisError
 
 Edit = Callable[[Path], None]
 
@@ -71,3 +73,22 @@ def test_wrong_gain_message_gives_the_gain_the_data_imply(linear_dataset: Path, 
 def test_unknown_candidate_effect_is_refused(linear_dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["diagnose", str(linear_dataset), "--effects", "coulomb_fricton"]) == 2
     assert "unknown candidate(s) coulomb_fricton" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("enabled", [True, False])
+def test_the_collector_is_paused_for_a_diagnosis_and_restored_after(enabled: bool, tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    seen: list[bool] = []
+
+    def failing(*_args: object, **_kwargs: object) -> None:
+        seen.append(gc.isenabled())
+        raise DiagnosisError("stopped by the test")
+
+    monkeypatch.setattr("grader.gap.diagnose.analyse", failing)
+    (gc.enable if enabled else gc.disable)()
+    try:
+        assert main(["diagnose", str(tmp_path), "-o", str(tmp_path / "out")]) == 2
+        assert seen == [False]
+        assert gc.isenabled() is enabled
+    finally:
+        gc.enable()
