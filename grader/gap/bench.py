@@ -136,6 +136,7 @@ class BenchConfig:
     effects: tuple[str, ...] | None = None
     sweep: bool = False
     workdir: Path | None = None
+    friction_test: bool = True
 
 
 @dataclass
@@ -160,8 +161,10 @@ def station_runs(station: Station, effects: EffectSet | None) -> list:
             for plan in paper_runs(p, effects)]
 
 
-def make_case_dataset(station: Station, effects: EffectSet, folder: Path, seed: int) -> Path:
-    """A dataset from the independent solve_ivp path (see module docstring); the truth goes beside the folder."""
+def make_case_dataset(station: Station, effects: EffectSet, folder: Path, seed: int, *,
+                      friction_test: bool = True) -> Path:
+    """A dataset from the independent solve_ivp path (see module docstring); the truth goes beside the folder.
+    Without ``friction_test``, the dataset has no friction test (no file, no manifest entry)."""
     from grader.model.rig_ivp import ivp_run_simulator
     from grader.synth import TRUTH_FILE, make_dataset
 
@@ -172,6 +175,11 @@ def make_case_dataset(station: Station, effects: EffectSet, folder: Path, seed: 
     make_dataset(quiet, folder, seed=seed, runs=station_runs(station, effects), run_simulator=ivp_run_simulator(noisy))
     truth_file = folder.parent / f"{folder.name}.truth.json"  # blind: the truth stays with the benchmark
     (folder / TRUTH_FILE).unlink()
+    if not friction_test:
+        manifest = folder / "manifest.json"
+        data = json.loads(manifest.read_text(encoding="utf-8"))
+        (folder / data.pop("friction")).unlink()
+        manifest.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
     truth_file.write_text(json.dumps({"effects": noisy.to_quantities(), "station": station.model_dump(mode="json")},
                                      indent=2) + "\n", encoding="utf-8")
     return folder
@@ -194,10 +202,11 @@ def _coverage(d: object, truth: EffectSet) -> dict[str, tuple[float, float, floa
     return out
 
 
-def _one(station: Station, truth: EffectSet, label: str, folder: Path, seed: int, strength: float | None) -> Case:
+def _one(station: Station, truth: EffectSet, label: str, folder: Path, seed: int, strength: float | None,
+         friction_test: bool = True) -> Case:
     from grader.gap.diagnose import analyse
 
-    make_case_dataset(station, truth, folder, seed)
+    make_case_dataset(station, truth, folder, seed, friction_test=friction_test)
     t0 = time.perf_counter()
     d = analyse(folder).diagnosis
     seconds = time.perf_counter() - t0
@@ -240,7 +249,8 @@ def _collect(cfg: BenchConfig, rng: np.random.Generator, base: Station, root: Pa
         demand = step_demand(station)
         truth = EffectSet({n: effect_params(n, rng, strength, demand) for n in names if n != NONE})
         label = "+".join(names)
-        case = _one(station, truth, label, root / f"{k:04d}_{label}", int(rng.integers(2**31)), strength)
+        case = _one(station, truth, label, root / f"{k:04d}_{label}", int(rng.integers(2**31)), strength,
+                    cfg.friction_test)
         result.cases.append(case)
         if progress:
             print(f"[{k + 1}] {'ok ' if case.right else 'MISS'} {label} {json.dumps(truth.to_quantities())} -> "

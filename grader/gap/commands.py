@@ -66,7 +66,8 @@ def _bench(args: argparse.Namespace) -> int:
     if args.n < 1 or args.pairs < 0:
         raise DiagnosisError(f"--n must be at least 1 and --pairs at least 0, got {args.n} and {args.pairs}")
     cfg = BenchConfig(n=args.n, pairs=args.pairs, seed=args.seed, effects=tuple(_effects(args.effects, TRUTHS) or ()) or None,
-                      sweep=args.sweep, workdir=output_folder(args.workdir) if args.workdir else None)
+                      sweep=args.sweep, workdir=output_folder(args.workdir) if args.workdir else None,
+                      friction_test=not args.no_friction_test)
     print(run_benchmark(cfg).text())
     return 0
 
@@ -87,4 +88,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--effects", help="comma-separated effects to benchmark (default: all, plus none)")
     p.add_argument("--sweep", action="store_true", help="also measure accuracy as each effect shrinks toward the noise")
     p.add_argument("--workdir", help="keep the generated datasets here (default: a temporary folder)")
+    p.add_argument("--no-friction-test", action="store_true",
+                   help="datasets without the friction test: the diagnosis must find friction from the runs alone")
     p.set_defaults(handler=_bench)

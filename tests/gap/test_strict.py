@@ -134,3 +134,15 @@ def test_friction_test_adds_viscous_friction_as_second_effect_with_no_share_of_t
     out = viscous(first, Friction(Fc=(2.0, 1.8, 2.2), B=(1.0, 0.8, 1.2)))
     assert (out.effect, out.second_effect) == ("coulomb_friction", "viscous_friction")
     assert out.shares == {"coulomb_friction": 1.0, "viscous_friction": 0.0}
+
+
+def test_a_benchmark_dataset_without_the_friction_test_has_no_friction_file_and_still_loads(tmp_path: Path) -> None:
+    from grader.datasets import load
+    from grader.gap.bench import make_case_dataset
+
+    station = load_station("default").model_copy(update={"effects": {}})
+    folder = make_case_dataset(station, EffectSet(), tmp_path / "case", 1, friction_test=False)
+    manifest = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
+    assert "friction" not in manifest and not (folder / "friction.csv").exists()
+    assert load(folder).friction is None
+    assert {"calibration.csv", "flow.csv", "instability.csv"} <= {p.name for p in folder.iterdir()}
