@@ -199,6 +199,14 @@ def _coverage(d: object, truth: EffectSet) -> dict[str, tuple[float, float, floa
                 lo, hi = v.interval or (v.value, v.value)
                 out[f"{effect}:{pname}"] = (truth.value(effect, pname), v.value, lo, hi)
         break
+    static = d.static_evidence.get("viscous_friction", {}).get("B")  # type: ignore[attr-defined]
+    lg = d.loop_gain  # type: ignore[attr-defined]
+    if static is None and lg is not None and lg.names_viscous:
+        static = lg.viscous_B
+    if "viscous_friction" in named and "viscous_friction" in truth and static is not None:
+        # named from a static test: its B, not the closed-loop fit's (the runs take B for a larger Kce)
+        lo, hi = static.interval or (static.value, static.value)
+        out["viscous_friction:B"] = (truth.value("viscous_friction", "B"), static.value, lo, hi)
     return out
 
 

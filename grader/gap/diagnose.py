@@ -212,7 +212,12 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     fr = evidence.friction(ds)
     cands, y_aug, verdict = _which_effect(runs, base, make_candidates(base.params, effects), noise_nrmse, fr,
                                           second=second, parallel=parallel)
-    verdict = evidence.quantized(evidence.viscous(verdict, fr), quant)
+    lg = None
+    if fr is None:  # without a friction test, the flow test against the runs' loop gain
+        none = next(c for c in cands if c.effect == NONE)
+        lg = evidence.loop_gain(ds, base.params.with_(**{k: v.value for k, v in none.linear_params.items()}),
+                                none.linear_params["Kq"])
+    verdict = evidence.quantized(evidence.viscous_from_loop_gain(evidence.viscous(verdict, fr), lg), quant)
     gain_unit = "dimensionless" if ds.manifest.feedback == "volts" else "V/in"
     diag = Diagnosis(
         dataset=ds.root.name, station=ds.manifest.station, inputs_sha256=ds.inputs_sha256,
@@ -220,7 +225,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
         noise=build.noise_floor(noise), gap=gap,
         readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit),
         candidates=cands, verdict=verdict, quantization=_quant_info(quant),
-        static_evidence={} if fr is None else fr.values(), notes=[*base.notes, *_notes(quant, implied)],
+        static_evidence={} if fr is None else fr.values(), loop_gain=lg, notes=[*base.notes, *_notes(quant, implied)],
     )
     return Analysis(diag, runs, segs, y_lin, y_aug)
 

@@ -8,6 +8,12 @@
   when the runs cannot tell Coulomb friction from the verdict (a deadband or backlash looks alike
   in closed loop), a friction test whose Fc is clearly above 0 and inside the fitted Coulomb
   candidate's interval makes Coulomb friction the verdict.
+* **Flow test against the runs' loop gain** (only without a friction test). With the loop gain
+  free, the runs absorb B into Kce and a smaller Kq (the closed loop has three coefficients,
+  :func:`grader.model.linear.plant_coeffs`, and B enters two of them). The re-fitted linear model's
+  Kq then sits below the flow test's; a deficit of :data:`DEFICIT_Z` standard errors or more
+  (both intervals combined) names viscous friction, with the B that gives the runs' closed loop at
+  the flow test's Kq (and its interval from the deficit's). A deficit that no B explains names nothing.
 * **ADC** (:mod:`grader.gap.quantization`): named when its step matters.
 """
 
@@ -15,16 +21,25 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import numpy as np
+from scipy.optimize import least_squares
+
 from grader.datasets import Dataset
 from grader.errors import IdentificationError
 from grader.gap import build
 from grader.gap.candidates import NONE
 from grader.gap.quantization import Quantization
-from grader.gap.schema import Candidate, Value, Verdict
+from grader.gap.schema import Candidate, LoopGainInfo, Value, Verdict
 from grader.gap.verdict import Ranking
 from grader.model.effects import EFFECTS
+from grader.model.linear import plant_coeffs
+from grader.model.params import RigParams
 
 VISIBLE = 0.1  # of the realistic range's top
+#: The runs' Kq this many standard errors below the flow test's names viscous friction (one-sided; on 25
+#: benchmark datasets with no effect the deficit stayed below 1.2).
+DEFICIT_Z = 3.0
+Z95 = 1.959964
 
 
 @dataclass(frozen=True)
@@ -59,10 +74,11 @@ def friction(ds: Dataset) -> Friction | None:
 
 
 def _add(verdict: Verdict, name: str, text: str) -> Verdict:
-    """``name`` as the verdict (if it is none) or as its second effect (if that is free)."""
+    """``name`` as the verdict (if it is none) or as its second effect (if that is free). A verdict named
+    this way has no margin over the runs' runner-up (the runs alone rank it with ``none``)."""
     if verdict.effect == NONE:
-        return verdict.model_copy(update={"effect": name, "shares": {name: 1.0}, "explanation": text,
-                                          "indistinguishable_from": [], "separating_test": None})
+        return verdict.model_copy(update={"effect": name, "shares": {name: 1.0}, "explanation": text, "margin": 0.0,
+                                          "runner_up": NONE, "indistinguishable_from": [], "separating_test": None})
     if verdict.second_effect is None:  # no share of the held-out shrink: it is not fitted to the runs
         return verdict.model_copy(update={"second_effect": name, "shares": {**verdict.shares, name: 0.0},
                                           "explanation": f"{verdict.explanation}; and {text}"})
@@ -103,3 +119,62 @@ def quantized(verdict: Verdict, quant: Quantization | None) -> Verdict:
     if quant is None or not quant.matters:
         return verdict
     return _add(verdict, "sensor_quantization", quant.text())
+
+
+def _damping(runs: RigParams, kq: float) -> tuple[float, bool]:
+    """The viscous friction B [lbf·s/in] that, with Kq = ``kq`` and β/Vt, Kce re-fitted, gives the closed loop
+    of ``runs`` (its plant coefficients), and whether it does so exactly: 0 for a Kq at or below the runs', and
+    beyond the largest deficit any B explains, the B that comes closest (not exact). Two B fit (a quadratic): the
+    search from B = 0 finds the smaller, right while B/M is less of the damping than 4β/Vt·Kce."""
+    target = np.array(plant_coeffs(runs))
+
+    def model(x: np.ndarray) -> RigParams:
+        return runs.with_(beta_over_Vt=runs.beta_over_Vt * float(np.exp(x[0])), Kce=runs.Kce * float(np.exp(x[1])),
+                          B=runs.B + float(x[2]), Kq=kq)
+
+    fit = least_squares(lambda x: np.array(plant_coeffs(model(x))) / target - 1.0, np.zeros(3),
+                        bounds=([-3.0, -3.0, 0.0], [3.0, 3.0, 100.0]), xtol=1e-12, ftol=1e-12)
+    return float(fit.x[2]), bool(np.max(np.abs(fit.fun)) < 1e-6)
+
+
+def _log_sigma(v: Value) -> float:
+    """Standard error of ln(value) from a 95 % interval (0 without one)."""
+    if v.interval is None or v.interval[0] <= 0:
+        return 0.0
+    return float(np.log(v.interval[1] / v.interval[0])) / (2 * Z95)
+
+
+def loop_gain(ds: Dataset, runs: RigParams, runs_kq: Value) -> LoopGainInfo | None:
+    """The flow test's Kq against the runs' (``runs`` is the re-fitted linear model, ``runs_kq`` its Kq with
+    interval) and the viscous friction that reconciles them (module docstring); None without a usable flow test."""
+    if ds.flow_test is None:
+        return None
+    from grader.identify.flow import FlowGainFit
+
+    try:
+        flow = FlowGainFit(Kamp=ds.given["Kamp"]).fit(ds.flow_test["input"], ds.flow_test["flow"]).Kq_
+    except (IdentificationError, ValueError, ArithmeticError):
+        return None
+    flow_kq = build.value(flow.value, "in**3/s/mA", flow.interval)
+    d = float(np.log(flow.value / runs.Kq))
+    sigma = float(np.hypot(_log_sigma(flow_kq), _log_sigma(runs_kq)))
+    z = d / sigma if sigma > 0 else 0.0
+    fits = [_damping(runs, runs.Kq * float(np.exp(x))) if x > 0 else (0.0, True)
+            for x in (d, d - Z95 * sigma, d + Z95 * sigma)]
+    b = [f[0] for f in fits]
+    top = EFFECTS["viscous_friction"].params[0].typical[1]
+    names = z >= DEFICIT_Z and fits[0][1] and b[1] > 0 and b[0] >= VISIBLE * top  # a B must explain the deficit
+    return LoopGainInfo(flow_test_Kq=flow_kq, runs_Kq=runs_kq, deficit=build.r6(1.0 - float(np.exp(-d))),
+                        deficit_z=build.r6(z), viscous_B=build.value(b[0], "lbf*s/in", (b[1], b[2])),
+                        names_viscous=names)
+
+
+def viscous_from_loop_gain(verdict: Verdict, lg: LoopGainInfo | None) -> Verdict:
+    """Viscous friction as the verdict when the runs name nothing and the loop gain shows it (module docstring)."""
+    if lg is None or not lg.names_viscous or verdict.effect != NONE:
+        return verdict
+    b, iv = lg.viscous_B.value, lg.viscous_B.interval or (lg.viscous_B.value,) * 2
+    return _add(verdict, "viscous_friction",
+                f"the runs' loop gain is {100 * lg.deficit:.2g} % below the flow test's Kq ({lg.deficit_z:.2g} "
+                f"standard errors): viscous friction B = {b:.3g} lbf·s/in (95 % interval {iv[0]:.3g} to {iv[1]:.3g}) "
+                "reconciles them, which the runs alone take for a larger Kce and a smaller Kq")

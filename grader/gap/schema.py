@@ -134,6 +134,17 @@ class QuantizationInfo(_Frozen):
     steady_state_error_band: Value = Field(description="± band round the set-point in which a P loop may settle")
 
 
+class LoopGainInfo(_Frozen):
+    """The flow test's Kq against the runs' loop gain (computed when the dataset has no friction test)."""
+
+    flow_test_Kq: Value = Field(description="Kq from the flow test")
+    runs_Kq: Value = Field(description="Kq of the linear model re-fitted to the runs (candidate 'none')")
+    deficit: float = Field(description="1 − runs_Kq / flow_test_Kq")
+    deficit_z: float = Field(description="ln(flow_test_Kq / runs_Kq) in standard errors of both intervals combined")
+    viscous_B: Value = Field(description="viscous friction that gives the runs' closed loop at the flow test's Kq")
+    names_viscous: bool = Field(description="the deficit names viscous friction (at least 3 standard errors, B visible)")
+
+
 class Diagnosis(_Frozen):
     schema_: str = Field(SCHEMA, alias="schema")
     dataset: str
@@ -149,6 +160,8 @@ class Diagnosis(_Frozen):
     quantization: QuantizationInfo | None = None
     static_evidence: dict[str, dict[str, Value]] = Field(
         default_factory=dict, description="effect parameters the static tests measure (friction test: Fc and B)")
+    loop_gain: LoopGainInfo | None = Field(None, description="the flow test's Kq against the runs' loop gain "
+                                                             "(datasets without a friction test)")
     notes: list[str]
 
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)

@@ -100,7 +100,14 @@ def _quantization(d: Diagnosis) -> str:
 def _viscous(d: Diagnosis) -> str:
     b = d.static_evidence.get("viscous_friction", {}).get("B")
     if b is None or b.interval is None:
-        return ""
+        lg = d.loop_gain
+        if lg is None or not lg.names_viscous or lg.viscous_B.interval is None:
+            return ""
+        lo, hi = lg.viscous_B.interval
+        return (f"The runs' loop gain is {100 * lg.deficit:.2g} % below the flow test's Kq ({lg.deficit_z:.2g} standard "
+                f"errors); viscous friction B = {show(lg.viscous_B.value, 'lbf*s/in')} (95 % interval "
+                f"{show(lo, 'lbf*s/in')} to {show(hi, 'lbf*s/in')}) reconciles them. In the closed loop it acts as a "
+                "larger Kce and a smaller Kq, so the runs alone cannot name it; the friction test would measure it.")
     return (f"The friction test shows viscous friction B = {show(b.value, 'lbf*s/in')} (95 % interval "
             f"{show(b.interval[0], 'lbf*s/in')} to {show(b.interval[1], 'lbf*s/in')}); in the closed loop it acts "
             "almost exactly as a larger Kce, so the runs alone cannot name it.")
@@ -151,6 +158,10 @@ def _how_far(d: Diagnosis, best: Candidate) -> str:
     if d.verdict.effect == "none":
         return (f"How far it shrinks: nothing to add. The re-fitted linear model predicts a typical left-out run "
                 f"with an NRMSE of {100 * best.heldout_nrmse_before:.2g} %.")
+    if best.effect == "none":  # named from the static tests, not from the runs
+        return (f"How far it shrinks: not measurable from the runs, which take {effect_name(d.verdict.effect)} for "
+                f"re-fitted linear parameters: the re-fitted linear model predicts a typical left-out run with an "
+                f"NRMSE of {100 * best.heldout_nrmse_before:.2g} %.")
     text = (f"How far it shrinks: adding {effect_name(best.effect)} to the model removes "
             f"{100 * best.shrink:.0f} % of the gap on a typical run left out of the fit (NRMSE "
             f"{100 * best.heldout_nrmse_before:.2g} % → {100 * best.heldout_nrmse_after:.2g} %, geometric mean over runs).")

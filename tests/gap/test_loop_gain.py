@@ -1,0 +1,66 @@
+"""Without a friction test, viscous friction is named from the flow test's Kq against the runs' loop gain."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from grader.gap.diagnose import analyse
+from grader.gap.evidence import _damping
+from grader.model.linear import plant_coeffs
+from grader.stations import load_station
+
+from .conftest import FEW, MakeDataset
+
+
+@settings(max_examples=25, deadline=None)
+@given(B=st.floats(0.05, 2.0), kce_scale=st.floats(0.5, 3.0))
+def test_the_damping_found_is_the_rigs_own(B: float, kce_scale: float) -> None:
+    """The rig with B, seen through a model without B (β/Vt, Kce and Kq solved in closed form from its
+    three plant coefficients), gives back B once Kq is the rig's own (B up to four times its realistic top,
+    while viscous friction is less of the damping than the leakage: then B is the smaller of the two that fit)."""
+    rig = load_station("default").params()
+    rig = rig.with_(B=B, Kce=rig.Kce * kce_scale)
+    a2, a1, b0 = plant_coeffs(rig)
+    g = a1 * rig.M / rig.A**2  # X/I = b0 / (s (s² + a2 s + a1)) with B = 0: a1 = g A²/M, a2 = g Kce, b0 = g Kq A/M
+    seen = rig.with_(B=0.0, beta_over_Vt=g / 4, Kce=a2 / g, Kq=b0 * rig.M / (g * rig.A))
+    assert seen.Kq < rig.Kq
+    found, exact = _damping(seen, rig.Kq)
+    assert exact and found == pytest.approx(B, rel=1e-4)
+    assert _damping(seen, seen.Kq)[0] == pytest.approx(0.0, abs=1e-9)
+    assert not _damping(seen, rig.Kq * 3)[1]  # a deficit of two thirds: no viscous friction explains it
+
+
+def _without_friction_test(src: Path, dst: Path) -> Path:
+    shutil.copytree(src, dst)
+    manifest = json.loads((dst / "manifest.json").read_text(encoding="utf-8"))
+    (dst / manifest.pop("friction")).unlink()
+    (dst / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
+    return dst
+
+
+def test_viscous_friction_is_named_from_the_loop_gain_and_its_b_covers_the_truth(make: MakeDataset,
+                                                                                  tmp_path: Path) -> None:
+    folder = _without_friction_test(make("viscous_1", {"viscous_friction": {"B": 1.0}}), tmp_path / "viscous")
+    d = analyse(folder, effects=FEW).diagnosis
+    assert d.verdict.effect == "viscous_friction"
+    assert d.loop_gain is not None and d.loop_gain.names_viscous and d.loop_gain.deficit_z >= 3
+    lo, hi = d.loop_gain.viscous_B.interval or (0.0, 0.0)
+    assert lo <= 1.0 <= hi
+    assert "flow test" in d.verdict.explanation and d.verdict.margin == 0.0
+
+
+def test_no_effect_names_nothing_from_the_loop_gain(make: MakeDataset, tmp_path: Path) -> None:
+    folder = _without_friction_test(make("quiet"), tmp_path / "quiet")
+    d = analyse(folder, effects=FEW).diagnosis
+    assert d.verdict.effect == "none"
+    assert d.loop_gain is not None and not d.loop_gain.names_viscous
+
+
+def test_with_a_friction_test_the_loop_gain_is_not_used(analysed) -> None:  # noqa: ANN001 - fixture
+    assert analysed("quiet").diagnosis.loop_gain is None
