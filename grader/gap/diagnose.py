@@ -27,7 +27,7 @@ from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.runs import GapRun, check_gains, prepare_runs
 from grader.gap.schema import Candidate as SchemaCandidate
-from grader.gap.schema import Diagnosis, QuantizationInfo, Verdict
+from grader.gap.schema import Diagnosis, LoopGainInfo, QuantizationInfo, Verdict
 from grader.gap.search import SearchResult, search, second_effect
 from grader.gap.segments import Segment, segments_of
 from grader.gap.separating import separating_test
@@ -190,6 +190,13 @@ def _notes(quant: quant_mod.Quantization | None, implied_kfb: float | None) -> l
     return out
 
 
+def _loop_gain_note(lg: LoopGainInfo | None, verdict: Verdict) -> list[str]:
+    if lg is None or not lg.names_viscous or verdict.effect != "viscous_friction":
+        return []
+    return ["the candidates' viscous friction is fitted to the runs with the loop gain free, which takes most of B "
+            "for a larger Kce; the verdict's B is the one that reconciles the runs with the flow test's Kq"]
+
+
 def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: Sequence[str] | None = None,
             second: bool | None = None, parallel: bool = True) -> Analysis:
     """Run the diagnosis (see module docstring); ``effects`` limits the candidates (``none`` is always one);
@@ -225,7 +232,8 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
         noise=build.noise_floor(noise), gap=gap,
         readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit),
         candidates=cands, verdict=verdict, quantization=_quant_info(quant),
-        static_evidence={} if fr is None else fr.values(), loop_gain=lg, notes=[*base.notes, *_notes(quant, implied)],
+        static_evidence={} if fr is None else fr.values(), loop_gain=lg,
+        notes=[*base.notes, *_notes(quant, implied), *_loop_gain_note(lg, verdict)],
     )
     return Analysis(diag, runs, segs, y_lin, y_aug)
 
