@@ -43,6 +43,8 @@ from grader.model.rig_setup import DAC_LIMIT
 Array = NDArray[np.float64]
 RATED_FLOW = 0.5 * 231.0 / 60.0  # 0.5 gpm [in³/s]
 TYPICAL = {"beta_over_Vt": 2.0e4, "Kce": 7.0e-4}
+#: The loop fit moves ln β/Vt, ln Kce (and ln Kq) at most this far from its start (a factor of 55).
+LOG_SPAN = 4.0
 
 
 @dataclass(frozen=True)
@@ -120,7 +122,8 @@ def fit_loop(runs: Sequence[GapRun], p0: RigParams, *, fit_kq: bool) -> RigParam
             parts.append((y - run.y[:n]) / (run.scale * np.sqrt(n)))
         return np.concatenate(parts) if parts else np.zeros(1)
 
-    res = least_squares(resid, np.zeros(3 if fit_kq else 2), method="lm", x_scale=1.0)
+    n = 3 if fit_kq else 2  # each within a factor e^LOG_SPAN of its start: runs the linear model cannot follow
+    res = least_squares(resid, np.zeros(n), bounds=(-LOG_SPAN, LOG_SPAN), x_scale=1.0)  # must not drive it to 1e23
     return model(res.x)
 
 

@@ -37,18 +37,29 @@ from grader.model.params import Controller, RigParams
 from grader.model.rig_setup import RigArrays, resolve
 
 Array = NDArray[np.float64]
+#: Most RK4 substeps per sample: a model beyond it (a fitter's trial at absurd β/Vt or Kce) would take hours.
+MAX_SUBSTEPS = 2000
 
 
-def _engine_run(a: RigArrays, r_k: Array, noise: Array, K: NDArray[np.int64],
-                substeps: int | None) -> tuple[Array, Array, Array]:
-    """The compiled engine on padded per-run rows (imported here: numba loads on first use)."""
+def _engine_run(a: RigArrays, r_k: Array, noise: Array, K: NDArray[np.int64], substeps: int | None, *,
+                too_fast: str = "raise") -> tuple[Array, Array, Array]:
+    """The compiled engine on padded per-run rows (imported here: numba loads on first use). A run whose
+    fastest mode needs more than :data:`MAX_SUBSTEPS` per sample is an error (``too_fast="raise"``) or,
+    for a fitter's trial model (``"nan"``), not simulated: its rows are NaN."""
     from grader.model import engine
 
     m = a.substeps() if substeps is None else np.full(a.n, substeps, dtype=np.int64)
     if substeps is not None and substeps < 1:
         raise SimulationError(f"substeps must be >= 1, got {substeps}")
+    fast = m > MAX_SUBSTEPS
+    if fast.any() and too_fast == "raise":
+        j = int(np.flatnonzero(fast)[0])
+        raise SimulationError(f"run {j}: the rig's fastest mode needs {int(m[j])} substeps per sample (more than "
+                              f"{MAX_SUBSTEPS}); check its beta_over_Vt, Kce and the spool's tau")
     with np.errstate(all="ignore"):  # a wildly unstable trial model may overflow: its output says so
-        return engine.run(a, r_k, noise, K, m)
+        Y, U, X = engine.run(a, r_k, noise, np.where(fast, 0, K), np.where(fast, 1, m))
+    Y[fast], U[fast], X[fast] = np.nan, np.nan, np.nan
+    return Y, U, X
 
 
 def _grid(t: Array, r: Array, T: float) -> tuple[Array, Array]:
@@ -133,7 +144,7 @@ class PositionBatch:
 
     def run(self) -> list[Array]:
         """Position x_k [in] of each run, on its own samples."""
-        _, _, X = _engine_run(self.a, self.r, self.noise, self.K, None)
+        _, _, X = _engine_run(self.a, self.r, self.noise, self.K, None, too_fast="nan")
         return [X[j, :k].copy() for j, k in enumerate(self.K)]
 
 

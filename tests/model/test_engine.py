@@ -112,3 +112,21 @@ def test_zero_order_hold_matrices_match_scipy_expm(station: Station, h: float, s
     scale = np.abs(ref[:5]).max(axis=1, keepdims=True) + 1e-300
     np.testing.assert_allclose(phi / scale, ref[:5, :5] / scale, rtol=0, atol=1e-12)
     np.testing.assert_allclose(gam / scale, ref[:5, 5:] / scale, rtol=0, atol=1e-12)
+
+
+def test_a_model_too_stiff_to_step_fails_or_is_skipped_instead_of_running_for_hours(station: Station) -> None:
+    """β/Vt of 1e22 psi/in³ (a fit gone wrong) with a nonlinear plant: the public simulator says which run and
+    what to check; a fitter's batch gets NaN for that run, at once, and the other runs as usual."""
+    from grader.errors import SimulationError
+    from grader.model.rig import position_batch
+
+    p = station.params()
+    absurd = p.with_(beta_over_Vt=1e22)
+    orifice = EffectSet({"pressure_flow_nonlinearity": {}})
+    t = np.arange(0.0, 0.5, p.sample_time)
+    with pytest.raises(SimulationError, match=r"run 0: .*substeps per sample.*beta_over_Vt"):
+        simulate_rig(absurd, Controller(10), t, np.full(t.size, 0.1), orifice)
+    r = np.full(t.size, 0.1)
+    x = position_batch([p, absurd], [Controller(10)] * 2, [orifice] * 2, [r, r]).run()
+    assert np.isnan(x[1]).all() and np.isfinite(x[0]).all()
+    assert x[0] == pytest.approx(simulate_positions([p], [Controller(10)], [orifice], [r])[0])
