@@ -127,7 +127,7 @@ def _which(d: Diagnosis, best: Candidate) -> str:
         if v.margin > 0:
             text += (f" It beats the runner-up, {runner}, by a margin of {v.margin:.2g} (log ratio of held-out "
                      f"scores); in {100 * v.confidence:.0f} % of resamples of the runs it stays the answer.")
-        elif "friction test" in v.explanation:
+        elif "friction test" in v.explanation and v.effect != "viscous_friction":  # a Coulomb tie broken
             why = next(part for part in v.explanation.split("; ") if "friction test" in part)
             text += f" The runs alone rank it with {runner}; {why}."
     if v.indistinguishable_from:

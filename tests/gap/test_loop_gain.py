@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from grader.gap.diagnose import analyse
 from grader.gap.evidence import _damping
+from grader.gap.summary import summary
 from grader.model.linear import plant_coeffs
 from grader.stations import load_station
 
@@ -53,6 +54,9 @@ def test_viscous_friction_is_named_from_the_loop_gain_and_its_b_covers_the_truth
     lo, hi = d.loop_gain.viscous_B.interval or (0.0, 0.0)
     assert lo <= 1.0 <= hi
     assert "flow test" in d.verdict.explanation and d.verdict.margin == 0.0
+    text = summary(d)
+    assert text.count("below the flow test's Kq") == 1 and "beats the runner-up" not in text
+    assert "How far it shrinks: not measurable from the runs" in text
 
 
 def test_no_effect_names_nothing_from_the_loop_gain(make: MakeDataset, tmp_path: Path) -> None:
