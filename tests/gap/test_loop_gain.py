@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from grader.gap.diagnose import analyse
-from grader.gap.evidence import _damping
+from grader.gap.evidence import DEFICIT_Z, _damping
 from grader.gap.summary import summary
 from grader.model.linear import plant_coeffs
 from grader.stations import load_station
@@ -50,7 +50,7 @@ def test_viscous_friction_is_named_from_the_loop_gain_and_its_b_covers_the_truth
     folder = _without_friction_test(make("viscous_1", {"viscous_friction": {"B": 1.0}}), tmp_path / "viscous")
     d = analyse(folder, effects=FEW).diagnosis
     assert d.verdict.effect == "viscous_friction"
-    assert d.loop_gain is not None and d.loop_gain.names_viscous and d.loop_gain.deficit_z >= 3
+    assert d.loop_gain is not None and d.loop_gain.names_viscous and d.loop_gain.deficit_z >= DEFICIT_Z
     lo, hi = d.loop_gain.viscous_B.interval or (0.0, 0.0)
     assert lo <= 1.0 <= hi
     assert "flow test" in d.verdict.explanation and d.verdict.margin == 0.0
