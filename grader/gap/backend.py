@@ -27,6 +27,10 @@ from grader.model.params import Controller, RigParams
 from grader.model.rig import position_batch
 
 Array = NDArray[np.float64]
+#: A trial model needing more RK4 substeps per sample than this is not simulated (NaN, a capped residual):
+#: every rig of the realistic space needs under ten, and a fit that strays to a stiffer β/Vt or Kce would
+#: otherwise cost minutes per request.
+FIT_MAX_SUBSTEPS = 100
 
 
 @dataclass(frozen=True)
@@ -51,7 +55,8 @@ def _positions(points: Sequence[Point], which: Sequence[int], runs: Sequence[tup
                ) -> list[Array]:
     """x_k [in] of each point on run ``which[j]``; ``runs`` holds each run's (controller, command, noise)."""
     return position_batch([pt.params for pt in points], [runs[i][0] for i in which], [pt.effects for pt in points],
-                          [runs[i][1] for i in which], [runs[i][2] for i in which]).run()
+                          [runs[i][1] for i in which], [runs[i][2] for i in which],
+                          max_substeps=FIT_MAX_SUBSTEPS).run()
 
 
 class Backend:

@@ -26,7 +26,7 @@ from scipy.optimize import least_squares
 
 from grader.datasets import Dataset
 from grader.errors import DiagnosisError, GraderError, IdentificationError
-from grader.gap.runs import GapRun, control_law
+from grader.gap.runs import GapRun, controller_output
 from grader.identify import (
     FlowGainFit,
     OscillationFit,
@@ -79,7 +79,7 @@ def from_key(path: str | Path, ds: Dataset) -> Baseline | str:
 
 def _linear_part(run: GapRun, p: RigParams) -> int:
     """Samples before the controller output first nears the DAC or amplifier limit."""
-    u = run.u if run.u is not None else control_law(run.controller, p.k_fb * (run.r - run.y), p.sample_time)
+    u = controller_output(run, p.k_fb, p.sample_time)
     limit = 0.9 * min(DAC_LIMIT, p.i_max / p.Kamp)
     over = np.flatnonzero(np.abs(u) >= limit)
     return int(over[0]) if over.size else run.n

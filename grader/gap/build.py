@@ -111,11 +111,12 @@ def critical_gain(b: Baseline) -> float | None:
 
 
 def candidate(state: FitState, cv: CrossValidation, before: CrossValidation, score: float, runs: Sequence[GapRun],
-              base: Baseline) -> Candidate:
-    """One candidate's entry: parameters with jackknife-or-Gauss–Newton 95 % intervals, held-out gap, shrink."""
+              lengths: Sequence[int], base: Baseline) -> Candidate:
+    """One candidate's entry: parameters with jackknife-or-Gauss–Newton 95 % intervals, held-out gap, shrink;
+    ``lengths`` are the residual entries of each run."""
     c, th = state.candidate, state.theta
-    se = _theta_se(state, cv, [runs[i].n for i in state.runs])
-    k = float(stats.t.ppf(0.975, max(len(runs) - 1, 1)))
+    se = _theta_se(state, cv, [lengths[i] for i in state.runs])
+    k = t_quantile(len(runs))
     params = {}
     for j, fp in enumerate(c.params, start=N_LINEAR):
         v = th[j] * fp.scale
@@ -133,6 +134,11 @@ def candidate(state: FitState, cv: CrossValidation, before: CrossValidation, sco
     return Candidate(effect=c.effect, params=params, linear_params=lin, n_params=c.n_theta, fit_nrmse=r6(fit),
                      heldout_nrmse_before=r6(bef), heldout_nrmse_after=r6(after), shrink=r6(_shrink(bef, after)),
                      score=r6(score), by_run=by_run)
+
+
+def t_quantile(n_runs: int) -> float:
+    """Student's t quantile of the 95 % intervals: (runs − 1) degrees of freedom."""
+    return float(stats.t.ppf(0.975, max(n_runs - 1, 1)))
 
 
 def _shrink(before: float, after: float) -> float:

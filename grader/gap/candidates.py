@@ -26,6 +26,9 @@ Array = NDArray[np.float64]
 NONE = "none"
 #: Canonical effects that describe the sensor, not the physics: part of the noise floor.
 NOISE_EFFECTS = ("sensor_noise", "sensor_quantization")
+#: Not fitted to the runs unless asked for: with the loop gain free, viscous friction is exactly a larger Kce
+#: (:mod:`grader.gap.evidence` names it from the friction test or the flow test's loop gain instead).
+NOT_FROM_RUNS = ("viscous_friction",)
 #: Parameters held fixed when fitting (effect -> {param: value}).
 FIXED: Mapping[str, Mapping[str, float]] = {"valve_dynamics": {"order": 1.0, "zeta": 0.7}}
 #: Forward-difference steps (log ratios, magnitudes): small where the model is smooth in θ, larger for
@@ -52,14 +55,25 @@ class FitParam:
 
     def grid(self, n: int = GRID_POINTS) -> Array:
         """Starting magnitudes m, log-spaced over the realistic range (from 1/16 of its top, and 0,
-        if it starts at 0)."""
+        if it starts at 0); for a current limit, the share of the demand it cuts off is log-spaced (from
+        5 %: a limit at the demand does nothing, and a fit started there cannot move)."""
+        if self.name == "i_max":
+            return 1.0 - np.geomspace(LIMIT_CUT, 1.0 - self.typical_lo / self.scale, n)
         if self.typical_lo > 0:
             return np.geomspace(self.typical_lo / self.scale, 1.0, n)
         return np.concatenate([[0.0], np.geomspace(1.0 / 16.0, 1.0, n - 1)])
 
 
-def _fit_param(effect: str, spec: ParamSpec, upper: float | None = None) -> FitParam:
+#: A current limit is searched from this share of the largest current the runs ask for up to that current,
+#: starting from limits that cut off at least LIMIT_CUT of it.
+DEMAND_SHARE, LIMIT_CUT = 0.05, 0.05
+
+
+def _fit_param(effect: str, spec: ParamSpec, upper: float | None = None, demand: float | None = None) -> FitParam:
     hi = spec.hi if upper is None else min(spec.hi, upper)
+    if spec.name == "i_max" and demand is not None and demand > 0:
+        top = min(demand, hi)  # a limit above every current the runs ask for does nothing
+        return FitParam(effect, spec.name, spec.unit, top, spec.lo, hi, max(spec.lo, DEMAND_SHARE * top))
     return FitParam(effect, spec.name, spec.unit, spec.typical[1], spec.lo, hi, spec.typical[0])
 
 
@@ -100,8 +114,8 @@ class Candidate:
 
     def strength(self, theta: Array) -> float:
         """How strongly the (last added) effect acts at θ, as a fraction of its realistic range's top
-        (saturation: the current it takes from the amplifier's range; no parameters, as the orifice
-        law: 1)."""
+        (saturation: the share of the largest current the runs ask for that it cuts off; no parameters,
+        as the orifice law: 1)."""
         if not self.names:
             return 0.0
         own = [(j, p) for j, p in enumerate(self.params, start=N_LINEAR) if p.effect == self.names[-1]]
@@ -109,7 +123,7 @@ class Candidate:
             return 1.0
         j, p = own[0]
         if p.name == "i_max":
-            return max(0.0, (p.hi - theta[j] * p.scale) / p.scale)
+            return max(0.0, 1.0 - float(theta[j]))
         return float(theta[j])
 
     def point(self, base: RigParams, theta: Array) -> Point:
@@ -124,9 +138,11 @@ def combine(first: Candidate, second: Candidate) -> Candidate:
                      {**first.fixed, **second.fixed}, first.names + second.names)
 
 
-def make_candidates(base: RigParams, names: Sequence[str] | None = None) -> list[Candidate]:
-    """``none`` and every physical canonical effect (or only ``names``), in canonical order."""
-    wanted = [n for n in EFFECTS if n not in NOISE_EFFECTS] if names is None else list(names)
+def make_candidates(base: RigParams, names: Sequence[str] | None = None, *, demand: float | None = None) -> list[Candidate]:
+    """``none`` and every physical canonical effect but :data:`NOT_FROM_RUNS` (or only ``names``), in canonical
+    order; ``demand`` [mA], the largest valve current the runs ask for, sets the range a current limit is
+    searched over."""
+    wanted = [n for n in physical_effects() if n not in NOT_FROM_RUNS] if names is None else list(names)
     out = [Candidate(NONE)]
     for name in wanted:
         if name == NONE:
@@ -134,7 +150,7 @@ def make_candidates(base: RigParams, names: Sequence[str] | None = None) -> list
         spec = EFFECTS[name]
         fixed = FIXED.get(name, {})
         upper = {"i_max": base.i_max}
-        params = tuple(_fit_param(name, p, upper.get(p.name)) for p in spec.params if p.name not in fixed)
+        params = tuple(_fit_param(name, p, upper.get(p.name), demand) for p in spec.params if p.name not in fixed)
         out.append(Candidate(name, params, {name: fixed} if fixed else {}, (name,)))
     return out
 

@@ -3,11 +3,9 @@
 For each run left out, every candidate is re-fitted on the other runs, starting from
 its all-runs optimum θ* (whose residuals and Jacobian restricted to the training runs
 are already known), by a few batched Levenberg–Marquardt rounds; it is then simulated
-on the left-out run only, and its NRMSE there is the held-out gap. The held-out runs
-are those of ``test`` (the search passes the instability run cut to its first stretch:
-a run at the margin of stability cannot be predicted cycle for cycle over fifty cycles
-from the other runs, and the lottery of its late phase would swamp every other run).
-The fold estimates θ_f also give jackknife standard errors of the parameters.
+on the left-out run only, and the norm of its residual there (:mod:`grader.gap.objective`:
+the NRMSE, with the instability run's oscillation compared without its phase) is the
+held-out gap. The fold estimates θ_f also give jackknife standard errors of the parameters.
 """
 
 from __future__ import annotations
@@ -59,16 +57,14 @@ def fold_state(full: FitState, leave: int, lengths: Sequence[int]) -> FitState:
     return replace(full, runs=runs, res=full.res[keep], jac=full.jac[keep], lam=1e-3, done=False)
 
 
-def cross_validate(fitter: BatchFitter, states: Sequence[FitState], *, test: BatchFitter | None = None,
-                   rounds: int = FOLD_ROUNDS) -> list[CrossValidation]:
-    """Leave-one-run-out cross-validation of every all-runs fit in ``states`` (held-out gaps on ``test``'s runs,
-    by default ``fitter``'s)."""
-    lengths = [r.n for r in fitter.runs]
+def cross_validate(fitter: BatchFitter, states: Sequence[FitState], *, rounds: int = FOLD_ROUNDS) -> list[CrossValidation]:
+    """Leave-one-run-out cross-validation of every all-runs fit in ``states``."""
+    lengths = fitter.lengths
     n = len(lengths)
     folds = [fold_state(s, i, lengths) for s in states for i in range(n)]
     folds = fitter.refine(folds, rounds=rounds, dampings=(1.0,), final_jacobian=False)
     jobs = [(f.candidate, f.theta, (k % n,)) for k, f in enumerate(folds)]
-    res = (test or fitter).residuals(jobs)
+    res = fitter.residuals(jobs)
     out = []
     for j in range(len(states)):
         heldout = np.array([float(np.linalg.norm(res[j * n + i])) for i in range(n)])

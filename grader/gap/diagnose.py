@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from concurrent.futures import Executor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -22,14 +22,16 @@ from grader.gap import build, evidence
 from grader.gap import noise as noise_mod
 from grader.gap import quantization as quant_mod
 from grader.gap.backend import Backend, Point, worker
-from grader.gap.candidates import NONE, Candidate, make_candidates
+from grader.gap.candidates import NONE, NOT_FROM_RUNS, Candidate, make_candidates
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
-from grader.gap.runs import GapRun, check_gains, prepare_runs
+from grader.gap.objective import RunObjective, objective
+from grader.gap.runs import GapRun, check_gains, current_demand, prepare_runs
 from grader.gap.schema import Candidate as SchemaCandidate
 from grader.gap.schema import Diagnosis, LoopGainInfo, QuantizationInfo, Verdict
 from grader.gap.search import SearchResult, search, second_effect
 from grader.gap.segments import Segment, segments_of
+from grader.gap.spread import spread
 from grader.gap.separating import separating_test
 from grader.model.effects import EFFECTS
 from grader.gap.verdict import Ranking, Scored, decide, rank, scores
@@ -37,9 +39,9 @@ from grader.gap.verdict import Ranking, Scored, decide, rank, scores
 Array = NDArray[np.float64]
 #: A verdict whose fit leaves this many times the noise's mean square searches a second effect (``second=None``).
 RESIDUAL_RATIO = 1.5
-#: Never searched as a second effect: in the closed loop viscous friction is a larger Kce (the runs cannot
-#: size it, so on top of another effect it only soaks up that effect's misfit); the friction test names it.
-NOT_SECOND = ("viscous_friction",)
+#: A second effect must lower the all-runs fit's mean square by this many times the floor the first effect leaves
+#: (the reading noise's and what the noise makes the first effect's model do, :mod:`grader.gap.spread`).
+SECOND_GAIN = 2.0
 
 
 @dataclass(frozen=True)
@@ -64,23 +66,19 @@ def _reference_kfb(ds: Dataset) -> float | None:
     return PotCalibration().fit(ds.calibration["position"], ds.calibration["voltage"]).Kpot_.value
 
 
-def _model_y(state: FitState, runs: Sequence[GapRun]) -> list[Array]:
-    """The fitted model's simulation per run, recovered from its stacked residual."""
-    out, pos = [], 0
-    for run in runs:
-        out.append(run.y + state.res[pos:pos + run.n] * run.scale * np.sqrt(run.n))
-        pos += run.n
-    return out
+def _model_y(state: FitState, runs: Sequence[GapRun], base: baseline_mod.Baseline) -> list[Array]:
+    """The fitted model's simulation of every whole run."""
+    return Backend(runs).all_runs([state.candidate.point(base.params, state.theta)])[0]
 
 
-def _fit_nrmse(state: FitState, runs: Sequence[GapRun]) -> Array:
-    """Per-run NRMSE of an all-runs fit."""
-    ends = np.cumsum([r.n for r in runs])
-    return np.array([float(np.linalg.norm(state.res[e - r.n:e])) for r, e in zip(runs, ends)])
+def _fit_nrmse(state: FitState, lengths: Sequence[int]) -> Array:
+    """Per-run NRMSE of an all-runs fit (the norm of each run's part of its residual)."""
+    ends = np.cumsum(lengths)
+    return np.array([float(np.linalg.norm(state.res[e - n:e])) for n, e in zip(lengths, ends)])
 
 
-def _scored(found: SearchResult, runs: Sequence[GapRun]) -> list[Scored]:
-    return [Scored(s.candidate.effect, cv.heldout, _fit_nrmse(s, runs),
+def _scored(found: SearchResult) -> list[Scored]:
+    return [Scored(s.candidate.effect, cv.heldout, _fit_nrmse(s, found.lengths),
                    0 if s.candidate.effect == NONE else max(1, len(s.candidate.params)), s.candidate.strength(s.theta))
             for s, cv in zip(found.states, found.cvs)]
 
@@ -96,19 +94,21 @@ def _significant(cand: SchemaCandidate, effect: str) -> bool:
     return True
 
 
-def _second(runs: Sequence[GapRun], base: baseline_mod.Baseline, first: FitState, others: Sequence[Candidate],
-            noise_nrmse: Array, before: CrossValidation,
+def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, others: Sequence[Candidate],
+            floor_nrmse: Array, before: CrossValidation,
             executor: Executor | None) -> tuple[FitState, SchemaCandidate] | None:
-    """The best second effect on top of ``first`` if it explains clearly more than ``first`` alone, else None;
-    an addition whose parameter's 95 % interval reaches "no effect" is no second effect (it only moved the
-    first effect's optimum)."""
-    found = second_effect(runs, base.params, first, others, executor=executor)
-    scored = _scored(found, runs)
+    """The best second effect on top of ``first`` if it explains clearly more than ``first`` alone (beyond the
+    floor ``first`` leaves, by :data:`SECOND_GAIN`), else None; an addition whose parameter's 95 % interval
+    reaches "no effect" is no second effect (it only moved the first effect's optimum)."""
+    found = second_effect(objs, base.params, first, others, executor=executor)
+    scored = _scored(found)
     sc = scores(scored)
-    built = [build.candidate(st, cv, before, float(s), runs, base) for st, cv, s in zip(found.states, found.cvs, sc)]
+    runs = [o.run for o in objs]
+    built = [build.candidate(st, cv, before, float(s), runs, found.lengths, base)
+             for st, cv, s in zip(found.states, found.cvs, sc)]
     keep = [i for i, st in enumerate(found.states[:-1]) if _significant(built[i], st.candidate.names[-1])]
     keep.append(len(scored) - 1)
-    pick, _, _ = decide([scored[i] for i in keep], noise_nrmse, reference=len(keep) - 1)
+    pick, _, _ = decide([scored[i] for i in keep], floor_nrmse, reference=len(keep) - 1, gain=SECOND_GAIN)
     if pick == len(keep) - 1:
         return None
     return found.states[keep[pick]], built[keep[pick]]
@@ -129,32 +129,38 @@ def _verdict(rk: Ranking, names: list[str]) -> Verdict:
                    shares={} if v == NONE else {v: 1.0}, explanation=text)
 
 
-def _needs_second(state: FitState, runs: Sequence[GapRun], noise_nrmse: Array) -> bool:
-    """Whether the verdict's all-runs fit leaves a residual clearly above the noise (mean square over
-    RESIDUAL_RATIO times the noise's): then a pair of effects is searched."""
-    return float(np.mean(_fit_nrmse(state, runs) ** 2)) > RESIDUAL_RATIO * float(np.mean(noise_nrmse**2))
+def _needs_second(state: FitState, lengths: Sequence[int], floor_nrmse: Array) -> bool:
+    """Whether the verdict's all-runs fit leaves a residual clearly above the floor (mean square over
+    RESIDUAL_RATIO times the floor's): then a pair of effects is searched."""
+    return float(np.mean(_fit_nrmse(state, lengths) ** 2)) > RESIDUAL_RATIO * float(np.mean(floor_nrmse**2))
 
 
-def _which_effect(runs: Sequence[GapRun], base: baseline_mod.Baseline, candidates: Sequence[Candidate],
-                  noise_nrmse: Array, fr: evidence.Friction | None, *, second: bool | None,
+def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, candidates: Sequence[Candidate],
+                  noise_nrmse: Array, sigma: float, fr: evidence.Friction | None, *, second: bool | None,
                   parallel: bool) -> tuple[list[SchemaCandidate], list[Array], Verdict]:
     """Search, rank (the friction test breaking a Coulomb tie), optionally add a second effect:
-    (candidates best first, augmented model per run, verdict)."""
+    (candidates best first, augmented model per run, verdict); ``sigma`` [in] is the reading noise."""
+    runs = [o.run for o in objs]
     with worker(parallel) as executor:
-        found = search(runs, base.params, candidates, executor=executor)
+        found = search(objs, base.params, candidates, executor=executor)
         names = [s.candidate.effect for s in found.states]
-        rk = rank(_scored(found, runs), noise_nrmse)
+        rk = rank(_scored(found), noise_nrmse)
         before = found.cvs[names.index(NONE)]
-        built = [build.candidate(st, cv, before, float(sc), runs, base) for st, cv, sc in zip(found.states, found.cvs, rk.scores)]
+        built = [build.candidate(st, cv, before, float(sc), runs, found.lengths, base)
+                 for st, cv, sc in zip(found.states, found.cvs, rk.scores)]
         rk, why = evidence.coulomb_tie(rk, names, built, fr)
         extra = None
-        if second is None and names[rk.verdict] != NONE:
-            second = _needs_second(found.states[rk.verdict], runs, noise_nrmse)
-        if second and names[rk.verdict] != NONE:
-            others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict], *NOT_SECOND)]
-            extra = _second(runs, base, found.states[rk.verdict], others, noise_nrmse, before, executor)
+        if names[rk.verdict] != NONE:
+            first = found.states[rk.verdict]
+            own = spread(objs, first.candidate.point(base.params, first.theta), sigma)
+            floor = np.sqrt(noise_nrmse**2 + own)
+            if second is None:
+                second = _needs_second(first, found.lengths, floor)
+            if second:
+                others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict], *NOT_FROM_RUNS)]
+                extra = _second(objs, base, first, others, floor, before, executor)
     cands = [built[i] for i in rk.order]
-    y_aug = _model_y(found.states[rk.verdict], runs)
+    y_aug = _model_y(found.states[rk.verdict], runs, base)
     verdict = _verdict(rk, names)
     if why:
         verdict = verdict.model_copy(update={"explanation": f"{verdict.explanation}; {why}"})
@@ -162,7 +168,7 @@ def _which_effect(runs: Sequence[GapRun], base: baseline_mod.Baseline, candidate
         state, pair = extra
         added = state.candidate.names[-1]
         cands.append(pair)
-        y_aug = _model_y(state, runs)
+        y_aug = _model_y(state, runs, base)
         first = cands[0].shrink / pair.shrink if pair.shrink > 0 else 1.0
         share = build.r6(min(max(first, 0.0), 1.0))
         verdict = verdict.model_copy(update={
@@ -190,13 +196,6 @@ def _notes(quant: quant_mod.Quantization | None, implied_kfb: float | None) -> l
     return out
 
 
-def _loop_gain_note(lg: LoopGainInfo | None, verdict: Verdict) -> list[str]:
-    if lg is None or not lg.names_viscous or verdict.effect != "viscous_friction":
-        return []
-    return ["the candidates' viscous friction is fitted to the runs with the loop gain free, which takes most of B "
-            "for a larger Kce; the verdict's B is the one that reconciles the runs with the flow test's Kq"]
-
-
 def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: Sequence[str] | None = None,
             second: bool | None = None, parallel: bool = True) -> Analysis:
     """Run the diagnosis (see module docstring); ``effects`` limits the candidates (``none`` is always one);
@@ -217,14 +216,19 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
 
     noise_nrmse = np.array([noise.floor / r.scale for r in runs])
     fr = evidence.friction(ds)
-    cands, y_aug, verdict = _which_effect(runs, base, make_candidates(base.params, effects), noise_nrmse, fr,
+    demand = current_demand(runs, base.params.k_fb, T, base.params.Kamp)
+    objs = [objective(r, noise.sigma) for r in runs]
+    own = spread(objs, Point(base.params), noise.sigma)
+    objs = [replace(o, weight=float(np.sqrt(f**2 / (f**2 + s)))) for o, f, s in zip(objs, noise_nrmse, own)]
+    cands, y_aug, verdict = _which_effect(objs, base, make_candidates(base.params, effects, demand=demand), noise_nrmse,
+                                          noise.sigma, fr,
                                           second=second, parallel=parallel)
     lg = None
     if fr is None:  # without a friction test, the flow test against the runs' loop gain
-        none = next(c for c in cands if c.effect == NONE)
-        lg = evidence.loop_gain(ds, base.params.with_(**{k: v.value for k, v in none.linear_params.items()}),
-                                none.linear_params["Kq"])
-    verdict = evidence.quantized(evidence.viscous_from_loop_gain(evidence.viscous(verdict, fr), lg), quant)
+        lg = evidence.loop_gain(ds, next(c for c in cands if c.effect == verdict.effect), base.params,
+                                build.t_quantile(len(runs)))
+    verdict = evidence.viscous_from_loop_gain(evidence.viscous(verdict, fr), lg)
+    verdict = evidence.quantized(evidence.viscous_unexcluded(verdict, fr, lg), quant)
     gain_unit = "dimensionless" if ds.manifest.feedback == "volts" else "V/in"
     diag = Diagnosis(
         dataset=ds.root.name, station=ds.manifest.station, inputs_sha256=ds.inputs_sha256,
@@ -233,7 +237,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
         readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit),
         candidates=cands, verdict=verdict, quantization=_quant_info(quant),
         static_evidence={} if fr is None else fr.values(), loop_gain=lg,
-        notes=[*base.notes, *_notes(quant, implied), *_loop_gain_note(lg, verdict)],
+        notes=[*base.notes, *_notes(quant, implied)],
     )
     return Analysis(diag, runs, segs, y_lin, y_aug)
 

@@ -10,10 +10,12 @@
   candidate's interval makes Coulomb friction the verdict.
 * **Flow test against the runs' loop gain** (only without a friction test). With the loop gain
   free, the runs absorb B into Kce and a smaller Kq (the closed loop has three coefficients,
-  :func:`grader.model.linear.plant_coeffs`, and B enters two of them). The re-fitted linear model's
-  Kq then sits below the flow test's; a deficit of :data:`DEFICIT_Z` standard errors or more
-  (both intervals combined) names viscous friction, with the B that gives the runs' closed loop at
-  the flow test's Kq (and its interval from the deficit's). A deficit that no B explains names nothing.
+  :func:`grader.model.linear.plant_coeffs`, and B enters two of them). The verdict's fitted linear
+  model (``none``'s, or the one effect's the runs name) then has a Kq below the flow test's; a deficit
+  of :data:`DEFICIT_Z` standard errors or more (the flow test's, the runs' and, with volts feedback,
+  the calibration's Kpot's combined) names viscous friction, as the verdict or beside the runs' effect,
+  with the B that gives the runs' closed loop at the flow test's Kq (and its interval from the
+  deficit's). A deficit that no B explains names nothing.
 * **ADC** (:mod:`grader.gap.quantization`): named when its step matters.
 """
 
@@ -30,6 +32,7 @@ from grader.gap import build
 from grader.gap.candidates import NONE
 from grader.gap.quantization import Quantization
 from grader.gap.schema import Candidate, LoopGainInfo, Value, Verdict
+from grader.gap.separating import separating_test
 from grader.gap.verdict import Ranking
 from grader.model.effects import EFFECTS
 from grader.model.linear import plant_coeffs
@@ -137,16 +140,30 @@ def _damping(runs: RigParams, kq: float) -> tuple[float, bool]:
     return float(fit.x[2]), bool(np.max(np.abs(fit.fun)) < 1e-6)
 
 
-def _log_sigma(v: Value) -> float:
-    """Standard error of ln(value) from a 95 % interval (0 without one)."""
+def _log_se(v: Value, quantile: float) -> float:
+    """Standard error of ln(value) from a 95 % interval built as value ± ``quantile`` standard errors (0 without one)."""
     if v.interval is None or v.interval[0] <= 0:
         return 0.0
-    return float(np.log(v.interval[1] / v.interval[0])) / (2 * Z95)
+    return float(np.log(v.interval[1] / v.interval[0])) / (2 * quantile)
 
 
-def loop_gain(ds: Dataset, runs: RigParams, runs_kq: Value) -> LoopGainInfo | None:
-    """The flow test's Kq against the runs' (``runs`` is the re-fitted linear model, ``runs_kq`` its Kq with
-    interval) and the viscous friction that reconciles them (module docstring); None without a usable flow test."""
+def _kpot_se(ds: Dataset) -> float:
+    """Relative standard error of the calibration's Kpot where the loop gain carries it (volts feedback), else 0."""
+    if ds.manifest.feedback != "volts" or ds.calibration is None:
+        return 0.0
+    from grader.identify import PotCalibration
+
+    try:
+        k = PotCalibration().fit(ds.calibration["position"], ds.calibration["voltage"]).Kpot_
+    except (IdentificationError, ValueError, ArithmeticError):
+        return 0.0
+    return float(k.se / k.value) if k.value > 0 and np.isfinite(k.se) else 0.0
+
+
+def loop_gain(ds: Dataset, cand: Candidate, base: RigParams, quantile: float) -> LoopGainInfo | None:
+    """The flow test's Kq against the Kq of candidate ``cand`` fitted to the runs (its linear model around
+    ``base``; its intervals are ± ``quantile`` standard errors), and the viscous friction that reconciles them
+    (module docstring); None without a usable flow test."""
     if ds.flow_test is None:
         return None
     from grader.identify.flow import FlowGainFit
@@ -155,9 +172,11 @@ def loop_gain(ds: Dataset, runs: RigParams, runs_kq: Value) -> LoopGainInfo | No
         flow = FlowGainFit(Kamp=ds.given["Kamp"]).fit(ds.flow_test["input"], ds.flow_test["flow"]).Kq_
     except (IdentificationError, ValueError, ArithmeticError):
         return None
+    runs = base.with_(**{k: v.value for k, v in cand.linear_params.items()})
+    runs_kq = cand.linear_params["Kq"]
     flow_kq = build.value(flow.value, "in**3/s/mA", flow.interval)
     d = float(np.log(flow.value / runs.Kq))
-    sigma = float(np.hypot(_log_sigma(flow_kq), _log_sigma(runs_kq)))
+    sigma = float(np.sqrt((flow.se / flow.value) ** 2 + _log_se(runs_kq, quantile) ** 2 + _kpot_se(ds) ** 2))
     z = d / sigma if sigma > 0 else 0.0
     fits = [_damping(runs, runs.Kq * float(np.exp(x))) if x > 0 else (0.0, True)
             for x in (d, d - Z95 * sigma, d + Z95 * sigma)]
@@ -165,14 +184,32 @@ def loop_gain(ds: Dataset, runs: RigParams, runs_kq: Value) -> LoopGainInfo | No
     top = EFFECTS["viscous_friction"].params[0].typical[1]
     names = z >= DEFICIT_Z and fits[1][1] and b[1] > 0 and b[0] >= VISIBLE * top  # a B within the deficit's interval
     # must explain it exactly (beyond the largest deficit any B explains, B is the closest, at the interval's top)
-    return LoopGainInfo(flow_test_Kq=flow_kq, runs_Kq=runs_kq, deficit=build.r6(1.0 - float(np.exp(-d))),
-                        deficit_z=build.r6(z), viscous_B=build.value(b[0], "lbf*s/in", (b[1], b[2])),
-                        names_viscous=names)
+    return LoopGainInfo(flow_test_Kq=flow_kq, runs_Kq=runs_kq, candidate=cand.effect,
+                        deficit=build.r6(1.0 - float(np.exp(-d))), deficit_z=build.r6(z),
+                        viscous_B=build.value(b[0], "lbf*s/in", (b[1], b[2])), names_viscous=names)
+
+
+def viscous_unexcluded(verdict: Verdict, fr: Friction | None, lg: LoopGainInfo | None) -> Verdict:
+    """A ``none`` verdict lists viscous friction as indistinguishable when no static test rules out a visible B:
+    no friction test, and no flow test or a loop gain whose B interval reaches :data:`VISIBLE` of the range's top."""
+    top = EFFECTS["viscous_friction"].params[0].typical[1]
+    if verdict.effect != NONE or fr is not None or "viscous_friction" in verdict.indistinguishable_from:
+        return verdict
+    if lg is not None and (lg.viscous_B.interval or (0.0, 0.0))[1] < VISIBLE * top:
+        return verdict
+    upto = "" if lg is None or lg.viscous_B.interval is None else f" up to B = {lg.viscous_B.interval[1]:.3g} lbf·s/in"
+    test = separating_test(NONE, ["viscous_friction"])
+    return verdict.model_copy(update={
+        "indistinguishable_from": [*verdict.indistinguishable_from, "viscous_friction"],
+        "separating_test": verdict.separating_test or test,
+        "explanation": f"{verdict.explanation}; viscous friction{upto} cannot be ruled out without a friction test "
+                       f"(in the closed loop it acts as a larger Kce): {test} would show it"})
 
 
 def viscous_from_loop_gain(verdict: Verdict, lg: LoopGainInfo | None) -> Verdict:
-    """Viscous friction as the verdict when the runs name nothing and the loop gain shows it (module docstring)."""
-    if lg is None or not lg.names_viscous or verdict.effect != NONE:
+    """Viscous friction as the verdict (the runs name nothing) or as its second effect (the runs name one effect,
+    whose fit gave the Kq compared) when the loop gain shows it (module docstring)."""
+    if lg is None or not lg.names_viscous or lg.candidate != verdict.effect or verdict.second_effect is not None:
         return verdict
     b, iv = lg.viscous_B.value, lg.viscous_B.interval or (lg.viscous_B.value,) * 2
     return _add(verdict, "viscous_friction",

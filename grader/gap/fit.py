@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from grader.gap.backend import Point
 from grader.gap.candidates import N_LINEAR, Candidate
-from grader.gap.runs import GapRun
+from grader.gap.objective import RunObjective
 from grader.model.params import RigParams
 
 Array = NDArray[np.float64]
@@ -75,10 +75,17 @@ def _jacobian(c: Candidate, theta: Array, base: Array, probes: Sequence[Array]) 
 
 
 class BatchFitter:
-    """Fits many (candidate, runs) problems around one baseline with a shared simulator."""
+    """Fits many (candidate, runs) problems around one baseline with a shared simulator; each run is
+    compared through its objective (:mod:`grader.gap.objective`)."""
 
-    def __init__(self, runs: Sequence[GapRun], base: RigParams, simulate: Requests) -> None:
-        self.runs, self.base, self.sim = list(runs), base, simulate
+    def __init__(self, objectives: Sequence[RunObjective], base: RigParams, simulate: Requests) -> None:
+        self.objectives, self.base, self.sim = list(objectives), base, simulate
+        self.runs = [o.run for o in self.objectives]
+
+    @property
+    def lengths(self) -> list[int]:
+        """Residual entries per run."""
+        return [o.length for o in self.objectives]
 
     def residuals(self, jobs: Sequence[tuple[Candidate, Array, tuple[int, ...]]]) -> list[Array]:
         """Stacked residual of each (candidate, θ, runs) job."""
@@ -88,7 +95,7 @@ class BatchFitter:
         ys = iter(self.sim(requests))
         out = []
         for _, _, idx in jobs:
-            parts = [(next(ys) - self.runs[i].y) / (self.runs[i].scale * np.sqrt(self.runs[i].n)) for i in idx]
+            parts = [self.objectives[i].residual(next(ys)) for i in idx]
             out.append(np.clip(np.nan_to_num(np.concatenate(parts), nan=RES_CAP), -RES_CAP, RES_CAP))
         return out
 

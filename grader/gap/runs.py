@@ -87,6 +87,18 @@ def control_law(c: Controller, e: Array, T: float) -> Array:
     return c.Kp * e + c.Ki * T * np.cumsum(e) + c.Kd * d / T
 
 
+def controller_output(run: GapRun, k_fb: float, T: float) -> Array:
+    """u_k [V]: the recorded controller output, else the control law on the readings (within the DAC's range)."""
+    if run.u is not None:
+        return run.u
+    return np.clip(control_law(run.controller, k_fb * (run.r - run.y), T), -DAC_LIMIT, DAC_LIMIT)
+
+
+def current_demand(runs: list[GapRun], k_fb: float, T: float, Kamp: float) -> float:
+    """The largest valve current [mA] the runs' controller asks for (Kamp·|u|)."""
+    return max(float(np.max(np.abs(controller_output(r, k_fb, T)))) for r in runs) * Kamp
+
+
 def implied_feedback_gain(run: GapRun, T: float) -> float | None:
     """The k_fb [V/in or 1] that makes the manifest's gains reproduce the recorded u, or None without u."""
     if run.u is None:

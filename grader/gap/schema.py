@@ -138,7 +138,8 @@ class LoopGainInfo(_Frozen):
     """The flow test's Kq against the runs' loop gain (computed when the dataset has no friction test)."""
 
     flow_test_Kq: Value = Field(description="Kq from the flow test")
-    runs_Kq: Value = Field(description="Kq of the linear model re-fitted to the runs (candidate 'none')")
+    runs_Kq: Value = Field(description="Kq of the linear model re-fitted to the runs with candidate `candidate`")
+    candidate: str = Field("none", description="the candidate whose fit gave runs_Kq: 'none', or the one effect the runs name")
     deficit: float = Field(description="1 − runs_Kq / flow_test_Kq")
     deficit_z: float = Field(description="ln(flow_test_Kq / runs_Kq) in standard errors of both intervals combined")
     viscous_B: Value = Field(description="viscous friction that gives the runs' closed loop at the flow test's Kq")

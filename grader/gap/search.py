@@ -1,13 +1,13 @@
 """The candidate search: fit every candidate, then cross-validate.
 
 Oscillating runs make the objective multimodal: a model whose frequency is off by a
-few per cent drifts half a period out of phase over fifty cycles of the instability
-run, or over the ringing of a step near the critical gain. So the search continues
-from short to long: first a profile (β/Vt and Kce fitted at each magnitude of a grid
-over the effect's realistic range) on the runs' first :data:`PROFILE_WINDOW` seconds
-after their command, then all coordinates on their first :data:`FIRST_WINDOW`
-seconds, then on the full runs; then cross-validation, whose held-out gap on the
-instability run is measured over its first window (see :mod:`grader.gap.crossval`).
+few per cent drifts half a period out of phase over the ringing of a step near the
+critical gain (the instability run's long oscillation is compared without its phase,
+:mod:`grader.gap.objective`). So the search continues from short to long: first a
+profile (β/Vt and Kce fitted at each magnitude of a grid over the effect's realistic
+range) on the runs' first :data:`PROFILE_WINDOW` seconds after their command, then all
+coordinates on their first :data:`FIRST_WINDOW` seconds, then on the whole runs; then
+leave-one-run-out cross-validation.
 """
 
 from __future__ import annotations
@@ -23,48 +23,48 @@ from grader.gap.backend import Backend
 from grader.gap.candidates import Candidate, combine
 from grader.gap.crossval import CrossValidation, cross_validate
 from grader.gap.fit import BatchFitter, FitState, grid_starts
-from grader.gap.runs import GapRun, truncated
+from grader.gap.objective import RunObjective
 from grader.model.params import RigParams
 
 Array = NDArray[np.float64]
-PROFILE_WINDOW, FIRST_WINDOW = 0.25, 0.5  # [s] after each run's command, in the first stages
-PROFILE_ROUNDS, FIRST_ROUNDS, FULL_ROUNDS = 3, 3, 2
+import os
+PROFILE_WINDOW, FIRST_WINDOW = (None if os.environ.get("GW_PW", "0.25") == "none" else float(os.environ.get("GW_PW", "0.25"))), 0.5  # [s] after each run's command, in the first stages
+PROFILE_ROUNDS, FIRST_ROUNDS, FULL_ROUNDS = 3, 3, int(os.environ.get("GW_FR", "2"))
 
 
 @dataclass(frozen=True)
 class SearchResult:
-    """All-runs fits and their cross-validations, in candidate order."""
+    """All-runs fits and their cross-validations, in candidate order; ``lengths`` are the residual entries
+    of each run in the states' stacked residuals."""
 
     states: list[FitState]
     cvs: list[CrossValidation]
+    lengths: list[int]
 
 
-def _fitter(runs: Sequence[GapRun], base: RigParams, window: float | None, executor: Executor | None, *,
-            only_instability: bool = False) -> BatchFitter:
-    """A fitter on ``runs`` cut to ``window`` seconds after their command (None: whole; optionally only
-    the instability run is cut)."""
-    cut = [truncated(r, window) if window is not None and (r.kind == "instability" or not only_instability) else r
-           for r in runs]
-    return BatchFitter(cut, base, Backend(cut, executor=executor))
+def _fitter(objectives: Sequence[RunObjective], base: RigParams, window: float | None,
+            executor: Executor | None) -> BatchFitter:
+    """A fitter on the runs cut to ``window`` seconds after their command (None: whole)."""
+    cut = [o.cut(window) for o in objectives]
+    return BatchFitter(cut, base, Backend([o.run for o in cut], executor=executor))
 
 
-def search(runs: Sequence[GapRun], base: RigParams, candidates: Sequence[Candidate], *,
+def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequence[Candidate], *,
            executor: Executor | None = None, theta0: Sequence[Array] | None = None) -> SearchResult:
-    """Fit ``candidates`` around ``base`` on ``runs`` and cross-validate them (see module docstring);
-    ``theta0`` are the profile's starting points (default: the baseline, zero magnitudes)."""
-    short, middle, full = (_fitter(runs, base, w, executor) for w in (PROFILE_WINDOW, FIRST_WINDOW, None))
+    """Fit ``candidates`` around ``base`` on the runs of ``objectives`` and cross-validate them (see module
+    docstring); ``theta0`` are the profile's starting points (default: the baseline, zero magnitudes)."""
+    short, middle, full = (_fitter(objectives, base, w, executor) for w in (PROFILE_WINDOW, FIRST_WINDOW, None))
     states = short.profile(*grid_starts(candidates, theta0), rounds=PROFILE_ROUNDS)
     states = middle.fit(middle.rebase(states), rounds=FIRST_ROUNDS, final_jacobian=False)
     states = full.fit(full.rebase(states), rounds=FULL_ROUNDS)
-    test = _fitter(runs, base, FIRST_WINDOW, executor, only_instability=True)
-    return SearchResult(states, cross_validate(full, states, test=test))
+    return SearchResult(states, cross_validate(full, states), full.lengths)
 
 
-def second_effect(runs: Sequence[GapRun], base: RigParams, first: FitState, others: Sequence[Candidate], *,
+def second_effect(objectives: Sequence[RunObjective], base: RigParams, first: FitState, others: Sequence[Candidate], *,
                   executor: Executor | None = None) -> SearchResult:
     """Each of ``others`` added on top of the fitted ``first`` (greedy), searched from first's optimum;
     the first alone comes back as the last entry, the reference the additions must beat."""
     combos = [combine(first.candidate, o) for o in others]
     starts = [np.concatenate([first.theta, np.zeros(c.n_theta - first.theta.size)]) for c in combos]
-    return search(runs, base, [*combos, first.candidate], executor=executor, theta0=[*starts, first.theta])
+    return search(objectives, base, [*combos, first.candidate], executor=executor, theta0=[*starts, first.theta])
 

@@ -82,17 +82,19 @@ def scores(cands: Sequence[Scored], weights: Array | None = None) -> Array:
     return held * (1.0 + PENALTY * np.array([c.k_extra for c in cands]))
 
 
-def evidence(none: Scored, eff: Scored, noise_nrmse: Array, w: Array) -> float:
-    """E of ``eff`` against ``none`` (see module docstring); > 1 means clearly more than noise."""
+def evidence(none: Scored, eff: Scored, noise_nrmse: Array, w: Array, gain: float = NOISE_GAIN) -> float:
+    """E of ``eff`` against ``none`` (see module docstring; the fit's gain in units of ``gain`` × the floor's
+    mean square); > 1 means clearly more than noise."""
     held = (1.0 - _held(eff, w) / _held(none, w)) / REL_GAIN
-    fit = (_ms(none.fit, w) - _ms(eff.fit, w)) / (NOISE_GAIN * _ms(noise_nrmse, w))
+    fit = (_ms(none.fit, w) - _ms(eff.fit, w)) / (gain * _ms(noise_nrmse, w))
     return min(held, fit)
 
 
 def decide(cands: Sequence[Scored], noise_nrmse: Array, weights: Array | None = None, *,
-           reference: int | None = None) -> tuple[int, int, float]:
+           reference: int | None = None, gain: float = NOISE_GAIN) -> tuple[int, int, float]:
     """(verdict, best effect, its evidence): the best-scoring effect if E > 1 against the reference
-    (default ``none``; for a second effect, the first alone), else the reference."""
+    (default ``none``; for a second effect, the first alone, with ``noise_nrmse`` the floor it leaves and
+    a larger ``gain``), else the reference."""
     w = np.ones(noise_nrmse.size) if weights is None else weights
     s = scores(cands, w)
     i_none = next(i for i, c in enumerate(cands) if c.effect == NONE) if reference is None else reference
@@ -100,7 +102,7 @@ def decide(cands: Sequence[Scored], noise_nrmse: Array, weights: Array | None = 
     if not effects:
         return i_none, i_none, 0.0
     best = min(effects, key=lambda i: s[i])
-    e = evidence(cands[i_none], cands[best], noise_nrmse, w)
+    e = evidence(cands[i_none], cands[best], noise_nrmse, w, gain)
     return (best if e > 1.0 else i_none), best, e
 
 

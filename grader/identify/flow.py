@@ -5,6 +5,11 @@ leakage. The procedure: find the null (the minimum reading), subtract the
 leakage, give each reading its direction, convert input volts to current with
 Kamp, keep the linear region (saturation excluded), and fit
 ``reading = |Kq·(i − i0)| + leakage`` there by least squares.
+
+The linear region grows outward from a core round the null: the central half of the
+currents, or less when the flow saturates early (a valve whose current limit is a
+fraction of the amplifier's range): the core then ends short of where a V clipped at
+the plateau, fitted to every reading, saturates.
 """
 
 from __future__ import annotations
@@ -22,11 +27,33 @@ def _fit_v(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float6
     return least_squares(lambda x: np.abs(x[0] * (i - x[1])) + x[2] - q, x0, method="lm")
 
 
+#: The core ends at this share of the current where the clipped V saturates; at least CORE_MIN points each side.
+CORE_SHARE, CORE_MIN = 0.9, 2
+
+
+def _saturation_current(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float64]) -> float:
+    """|i − i0| [mA] at which ``q = min(|Kq·(i − i0)|, Qs) + leakage``, fitted to every reading, saturates."""
+    qs0 = float(np.max(q) - x0[2])
+    fit = least_squares(lambda x: np.minimum(np.abs(x[0] * (i - x[1])), x[3]) + x[2] - q,
+                        np.array([*x0, qs0]), method="trf", x_scale="jac")
+    kq, qs = abs(float(fit.x[0])), float(fit.x[3])
+    return qs / kq if kq > 0 and qs > 0 else float("inf")
+
+
+def _core(d: NDArray[np.float64], d_sat: float) -> NDArray[np.bool_]:
+    """The central half of the currents, cut short of saturation, with at least CORE_MIN points each side."""
+    keep = np.abs(d) <= min(0.5 * np.max(np.abs(d)), CORE_SHARE * d_sat)
+    for side in (1.0, -1.0):
+        own = np.flatnonzero(np.sign(d) == side)
+        keep[own[np.argsort(np.abs(d[own]))[:CORE_MIN]]] = True
+    return keep
+
+
 def _linear_region(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """Points on the V: start from the central half and grow each side outward until a
+    """Points on the V: start from the core (:func:`_core`) and grow each side outward until a
     point leaves the fitted V by more than 4 σ or 1 % (saturation begins there)."""
     d = i - x0[1]
-    keep = np.abs(d) <= 0.5 * np.max(np.abs(d))
+    keep = _core(d, _saturation_current(i, q, x0))
     for side in (1.0, -1.0):
         outer = np.flatnonzero((np.sign(d) == side) & ~keep)
         for k in outer[np.argsort(np.abs(d[outer]))]:

@@ -42,16 +42,16 @@ MAX_SUBSTEPS = 2000
 
 
 def _engine_run(a: RigArrays, r_k: Array, noise: Array, K: NDArray[np.int64], substeps: int | None, *,
-                too_fast: str = "raise") -> tuple[Array, Array, Array]:
+                too_fast: str = "raise", max_substeps: int = MAX_SUBSTEPS) -> tuple[Array, Array, Array]:
     """The compiled engine on padded per-run rows (imported here: numba loads on first use). A run whose
-    fastest mode needs more than :data:`MAX_SUBSTEPS` per sample is an error (``too_fast="raise"``) or,
+    fastest mode needs more than ``max_substeps`` per sample is an error (``too_fast="raise"``) or,
     for a fitter's trial model (``"nan"``), not simulated: its rows are NaN."""
     from grader.model import engine
 
     m = a.substeps() if substeps is None else np.full(a.n, substeps, dtype=np.int64)
     if substeps is not None and substeps < 1:
         raise SimulationError(f"substeps must be >= 1, got {substeps}")
-    fast = m > MAX_SUBSTEPS
+    fast = m > max_substeps
     if fast.any() and too_fast == "raise":
         j = int(np.flatnonzero(fast)[0])
         raise SimulationError(f"run {j}: the rig's fastest mode needs {int(m[j])} substeps per sample (more than "
@@ -141,17 +141,20 @@ class PositionBatch:
     r: Array  # (n, Kmax) commands [in], padded with their last value
     noise: Array  # (n, Kmax) reading noise [in]
     K: NDArray[np.int64]  # samples of each run
+    max_substeps: int = MAX_SUBSTEPS  # a run needing more RK4 substeps per sample is NaN
 
     def run(self) -> list[Array]:
         """Position x_k [in] of each run, on its own samples."""
-        _, _, X = _engine_run(self.a, self.r, self.noise, self.K, None, too_fast="nan")
+        _, _, X = _engine_run(self.a, self.r, self.noise, self.K, None, too_fast="nan", max_substeps=self.max_substeps)
         return [X[j, :k].copy() for j, k in enumerate(self.K)]
 
 
 def position_batch(params: Sequence[RigParams], controllers: Sequence[Controller], effects: Sequence[EffectSet],
-                   commands: Sequence[Array], noise: Sequence[Array] | None = None) -> PositionBatch:
+                   commands: Sequence[Array], noise: Sequence[Array] | None = None, *,
+                   max_substeps: int = MAX_SUBSTEPS) -> PositionBatch:
     """Runs (params[j], controllers[j], effects[j]) for sampled commands ``commands[j]`` [in] (lengths
-    may differ) whose controller reads x_k + ``noise[j][k]`` [in] (default 0)."""
+    may differ) whose controller reads x_k + ``noise[j][k]`` [in] (default 0); a run whose fastest mode
+    needs more than ``max_substeps`` RK4 substeps per sample comes back NaN."""
     a = resolve(params, controllers, effects, n=len(commands))
     K = np.array([c.size for c in commands], dtype=np.int64)
     r, nz = np.zeros((a.n, int(K.max()))), np.zeros((a.n, int(K.max())))
@@ -159,7 +162,7 @@ def position_batch(params: Sequence[RigParams], controllers: Sequence[Controller
         r[j, :c.size], r[j, c.size:] = c, c[-1]
         if noise is not None:
             nz[j, :c.size] = noise[j]
-    return PositionBatch(a, r, nz, K)
+    return PositionBatch(a, r, nz, K, max_substeps)
 
 
 def simulate_positions(params: Sequence[RigParams], controllers: Sequence[Controller], effects: Sequence[EffectSet],

@@ -9,6 +9,7 @@ from grader.gap import baseline
 from grader.gap.backend import Backend
 from grader.gap.candidates import make_candidates
 from grader.gap.fit import BatchFitter, grid_starts
+from grader.gap.objective import objective
 from grader.gap.runs import prepare_runs, truncated
 
 from .conftest import MakeDataset
@@ -19,7 +20,7 @@ def _fitter(make: MakeDataset) -> tuple[BatchFitter, list]:
     runs = [truncated(r, 0.3) for r in prepare_runs(ds, ds.given["sample_time"])]
     base = baseline.choose(ds, runs, key=None, implied_kfb=None)
     cands = make_candidates(base.params, ["coulomb_friction", "sampling_delay"])
-    fitter = BatchFitter(runs, base.params, Backend(runs))
+    fitter = BatchFitter([objective(r) for r in runs], base.params, Backend(runs))
     starts = fitter.profile(*grid_starts(cands), rounds=1)
     return fitter, fitter.rebase(starts)
 
