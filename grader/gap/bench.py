@@ -22,9 +22,6 @@ diagnosis.
 from __future__ import annotations
 
 import json
-import shutil
-import tempfile
-import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -32,7 +29,7 @@ import numpy as np
 
 from grader.gap.candidates import NONE, physical_effects
 from grader.model.effects import EFFECTS, EffectSet
-from grader.stations import Station, load_station
+from grader.stations import Station
 
 SWEEP = (1.0, 0.5, 0.25, 0.125, 0.0625)
 #: Magnitudes are drawn log-uniformly from [top/RANGE_SPAN, top] when the realistic range starts at 0.
@@ -137,16 +134,20 @@ class BenchConfig:
     sweep: bool = False
     workdir: Path | None = None
     friction_test: bool = True
+    jobs: int = 1  # datasets generated and diagnosed at once (each diagnosis then on one core)
+    cli_sample: int = 0  # datasets on which `grader diagnose` itself is timed, after the rest
 
 
 @dataclass
 class BenchResult:
     cases: list[Case] = field(default_factory=list)
+    cli_seconds: list[float] = field(default_factory=list)
+    cores: int = 2  # cores each diagnosis had
 
     def text(self) -> str:
         from grader.gap.bench_report import render
 
-        return render(self.cases)
+        return render(self.cases, self.cli_seconds, self.cores)
 
 
 def station_runs(station: Station, effects: EffectSet | None) -> list:
@@ -185,7 +186,7 @@ def make_case_dataset(station: Station, effects: EffectSet, folder: Path, seed: 
     return folder
 
 
-def _coverage(d: object, truth: EffectSet) -> dict[str, tuple[float, float, float, float]]:
+def coverage(d: object, truth: EffectSet) -> dict[str, tuple[float, float, float, float]]:
     """(truth, fitted, lo, hi) of each withheld effect parameter the diagnosis fitted under its verdict."""
     named = {d.verdict.effect, d.verdict.second_effect} - {None, NONE}  # type: ignore[attr-defined]
     out: dict[str, tuple[float, float, float, float]] = {}
@@ -210,20 +211,8 @@ def _coverage(d: object, truth: EffectSet) -> dict[str, tuple[float, float, floa
     return out
 
 
-def _one(station: Station, truth: EffectSet, label: str, folder: Path, seed: int, strength: float | None,
-         friction_test: bool = True) -> Case:
-    from grader.gap.diagnose import analyse
-
-    make_case_dataset(station, truth, folder, seed, friction_test=friction_test)
-    t0 = time.perf_counter()
-    d = analyse(folder).diagnosis
-    seconds = time.perf_counter() - t0
-    best = d.candidates[0]
-    return Case(label, strength, d.verdict.effect, d.verdict.second_effect, d.verdict.runner_up,
-                tuple(d.verdict.indistinguishable_from), best.shrink, seconds, _coverage(d, truth))
-
-
-def _plan(cfg: BenchConfig, rng: np.random.Generator) -> list[tuple[tuple[str, ...], float | None]]:
+def plan(cfg: BenchConfig, rng: np.random.Generator) -> list[tuple[tuple[str, ...], float | None]]:
+    """The effects withheld in each dataset, and the strength of a swept one."""
     names = list(cfg.effects) if cfg.effects else list(TRUTHS)
     plan: list[tuple[tuple[str, ...], float | None]] = [((n,), None) for n in names for _ in range(cfg.n)]
     plan += [(tuple(str(x) for x in rng.choice(PAIRED, 2, replace=False)), None) for _ in range(cfg.pairs)]
@@ -231,35 +220,3 @@ def _plan(cfg: BenchConfig, rng: np.random.Generator) -> list[tuple[tuple[str, .
         swept = [n for n in names if n not in (NONE, "pressure_flow_nonlinearity", "sensor_quantization")]
         plan += [((n,), s) for n in swept for s in SWEEP for _ in range(max(1, cfg.n // 2))]
     return plan
-
-
-def run_benchmark(cfg: BenchConfig, *, progress: bool = True) -> BenchResult:
-    """Generate, diagnose blind and collect (see module docstring)."""
-    rng = np.random.default_rng(cfg.seed)
-    base = load_station("default")
-    root = cfg.workdir or Path(tempfile.mkdtemp(prefix="bench-gap-"))
-    result = BenchResult()
-    try:
-        _collect(cfg, rng, base, root, result, progress)
-    except KeyboardInterrupt:  # Ctrl-C: the tables of the datasets done so far
-        print(f"interrupted after {len(result.cases)} datasets", flush=True)
-    finally:
-        if cfg.workdir is None:
-            shutil.rmtree(root, ignore_errors=True)
-    return result
-
-
-def _collect(cfg: BenchConfig, rng: np.random.Generator, base: Station, root: Path, result: BenchResult,
-             progress: bool) -> None:
-    """Generate and diagnose every planned dataset into ``result``."""
-    for k, (names, strength) in enumerate(_plan(cfg, rng)):
-        station = random_station(base, rng)
-        demand = step_demand(station)
-        truth = EffectSet({n: effect_params(n, rng, strength, demand) for n in names if n != NONE})
-        label = "+".join(names)
-        case = _one(station, truth, label, root / f"{k:04d}_{label}", int(rng.integers(2**31)), strength,
-                    cfg.friction_test)
-        result.cases.append(case)
-        if progress:
-            print(f"[{k + 1}] {'ok ' if case.right else 'MISS'} {label} {json.dumps(truth.to_quantities())} -> "
-                  f"{'+'.join(case.named)} (shrink {case.shrink:.2f}, {case.seconds:.1f} s)", flush=True)

@@ -43,7 +43,7 @@ def _pairs(pairs: list[Case]) -> str:
     return "\n".join(lines)
 
 
-def _headline(singles: list[Case], pairs: list[Case]) -> str:
+def _headline(singles: list[Case], pairs: list[Case], cli: list[float], cores: int) -> str:
     every = singles + pairs
     top2 = _mean([c.truth in (c.verdict, c.runner_up) for c in singles])
     nones = [c for c in singles if c.truth == NONE]
@@ -51,7 +51,8 @@ def _headline(singles: list[Case], pairs: list[Case]) -> str:
     secs = np.array([c.seconds for c in every])
     first_right = _mean([c.verdict in c.truths for c in pairs])
     return "\n".join([
-        f"datasets: {len(every)} ({len(singles)} with one effect or none, {len(pairs)} with two effects)",
+        f"datasets: {len(every)} ({len(singles)} with one effect or none, {len(pairs)} with two effects); "
+        f"diagnoses that failed: {sum(c.verdict == 'error' for c in every)}",
         f"strict top-1 (one effect or none): {_pct(_mean([c.right for c in singles]))}   strict top-2: {_pct(top2)}",
         f"false positives on none: {_pct(_mean([c.verdict != NONE or c.second is not None for c in nones]))} "
         f"({len(nones)} datasets)",
@@ -59,8 +60,10 @@ def _headline(singles: list[Case], pairs: list[Case]) -> str:
         f"verdict one of the two: {_pct(first_right)} ({len(pairs)} datasets)",
         f"median held-out shrink (verdicts naming an effect): {_pct(float(np.median(shrink)) if shrink else float('nan'))} "
         f"({len(shrink)} verdicts)",
-        (f"seconds per diagnosis: median {np.median(secs):.2f}, 90th percentile {np.percentile(secs, 90):.2f}, "
-         f"max {secs.max():.2f}") if secs.size else "seconds per diagnosis: –",
+        (f"seconds per diagnosis ({cores} core{'s' if cores > 1 else ''}, no report): median {np.median(secs):.2f}, "
+         f"90th percentile {np.percentile(secs, 90):.2f}, max {secs.max():.2f}") if secs.size else "seconds per diagnosis: –",
+        *([f"seconds of `grader diagnose` (new process, report included) on {len(cli)} datasets: median "
+           f"{np.median(cli):.2f}, 90th percentile {np.percentile(cli, 90):.2f}, max {max(cli):.2f}"] if cli else []),
     ])
 
 
@@ -93,11 +96,12 @@ def _sweep(cases: list[Case]) -> str:
     return "\n".join(lines)
 
 
-def render(cases: list[Case]) -> str:
-    """All tables, main benchmark first, then the magnitude sweep."""
+def render(cases: list[Case], cli: list[float] | None = None, cores: int = 2) -> str:
+    """All tables, main benchmark first, then the magnitude sweep; ``cli`` are timed runs of ``grader diagnose``,
+    ``cores`` the cores each diagnosis had."""
     main = [c for c in cases if c.strength is None]
     singles = [c for c in main if "+" not in c.truth]
     pairs = [c for c in main if "+" in c.truth]
-    parts = [_headline(singles, pairs), _confusion(singles), _pairs(pairs), _params(main)] if main else []
+    parts = [_headline(singles, pairs, cli or [], cores), _confusion(singles), _pairs(pairs), _params(main)] if main else []
     parts.append(_sweep(cases))
     return "\n\n".join(p for p in parts if p)

@@ -69,12 +69,18 @@ class FitParam:
 DEMAND_SHARE, LIMIT_CUT = 0.05, 0.05
 
 
+#: Least fitted value, as a share of the realistic range's top: a spool lag of 0.1 ms (1.6 kHz) acts as no lag in a
+#: loop sampled at 0.5 ms or slower, while a faster spool mode makes every stick-slip event costly to locate.
+FIT_FLOOR = {"tau": 0.02}
+
+
 def _fit_param(effect: str, spec: ParamSpec, upper: float | None = None, demand: float | None = None) -> FitParam:
     hi = spec.hi if upper is None else min(spec.hi, upper)
     if spec.name == "i_max" and demand is not None and demand > 0:
         top = min(demand, hi)  # a limit above every current the runs ask for does nothing
         return FitParam(effect, spec.name, spec.unit, top, spec.lo, hi, max(spec.lo, DEMAND_SHARE * top))
-    return FitParam(effect, spec.name, spec.unit, spec.typical[1], spec.lo, hi, spec.typical[0])
+    lo = max(spec.lo, FIT_FLOOR.get(spec.name, 0.0) * spec.typical[1])
+    return FitParam(effect, spec.name, spec.unit, spec.typical[1], lo, hi, spec.typical[0])
 
 
 @dataclass(frozen=True)

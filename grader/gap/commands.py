@@ -61,13 +61,15 @@ def _diagnose(args: argparse.Namespace) -> int:
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from grader.gap.bench import TRUTHS, BenchConfig, run_benchmark
+    from grader.gap.bench import TRUTHS, BenchConfig
+    from grader.gap.bench_run import run_benchmark
 
-    if args.n < 1 or args.pairs < 0:
-        raise DiagnosisError(f"--n must be at least 1 and --pairs at least 0, got {args.n} and {args.pairs}")
+    if args.n < 1 or args.pairs < 0 or args.jobs < 1 or args.time_cli < 0:
+        raise DiagnosisError(f"--n and --jobs must be at least 1, --pairs and --time-cli at least 0; got {args.n}, "
+                             f"{args.jobs}, {args.pairs} and {args.time_cli}")
     cfg = BenchConfig(n=args.n, pairs=args.pairs, seed=args.seed, effects=tuple(_effects(args.effects, TRUTHS) or ()) or None,
                       sweep=args.sweep, workdir=output_folder(args.workdir) if args.workdir else None,
-                      friction_test=not args.no_friction_test)
+                      friction_test=not args.no_friction_test, jobs=args.jobs, cli_sample=args.time_cli)
     print(run_benchmark(cfg).text())
     return 0
 
@@ -87,7 +89,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--effects", help="comma-separated effects to benchmark (default: all, plus none)")
     p.add_argument("--sweep", action="store_true", help="also measure accuracy as each effect shrinks toward the noise")
-    p.add_argument("--workdir", help="keep the generated datasets here (default: a temporary folder)")
+    p.add_argument("--workdir", help="keep the generated datasets here (default: a temporary folder); datasets "
+                                     "already there from the same seed and plan are diagnosed again, not regenerated")
+    p.add_argument("--jobs", type=int, default=1,
+                   help="datasets generated and diagnosed at once, each diagnosis on one core (default: 1, "
+                        "each diagnosis on two cores)")
+    p.add_argument("--time-cli", type=int, default=0, metavar="K",
+                   help="also time `grader diagnose` itself (a new process, report included) on K of the datasets")
     p.add_argument("--no-friction-test", action="store_true",
                    help="datasets without the friction test: the diagnosis must find friction from the runs alone")
     p.set_defaults(handler=_bench)

@@ -39,7 +39,7 @@ from grader.gap.verdict import Ranking, Scored, decide, rank, scores
 Array = NDArray[np.float64]
 #: A verdict whose fit leaves more than this many times the floor's mean square (the reading noise's and what the
 #: noise makes the verdict's model do, :mod:`grader.gap.spread`) searches a second effect (``second=None``).
-RESIDUAL_RATIO = 1.0
+RESIDUAL_RATIO = 1.5
 #: A second effect must lower the held-out score by SECOND_REL_GAIN and the all-runs fit's mean square by
 #: SECOND_GAIN times that floor, and act at SECOND_STRENGTH of its realistic range's top or more (a deadband of
 #: 0.03 mA that only lets the fit follow the noise's walk through a backlash names nothing).
@@ -113,21 +113,6 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
     keep.append(len(scored) - 1)
     pick, _, _ = decide([scored[i] for i in keep], floor_nrmse, reference=len(keep) - 1, gain=SECOND_GAIN,
                         rel_gain=SECOND_REL_GAIN)
-    import os
-    if os.environ.get("GW_DUMP"):
-        import json
-        from grader.gap.verdict import _held, _ms
-        w = np.ones(floor_nrmse.size)
-        ref = scored[-1]
-        rows = [{"effect": sc.effect, "held2": _held(sc, w), "fit2": _ms(sc.fit, w), "signif": i in keep,
-                 "strength": found.states[i].candidate.strength(found.states[i].theta),
-                 "held_runs": list(map(float, sc.heldout)), "fit_runs": list(map(float, sc.fit))}
-                for i, sc in enumerate(scored[:-1])]
-        with open(os.environ["GW_DUMP"], "a") as fh:
-            fh.write(json.dumps({"dataset": os.environ.get("GW_DS", ""), "floor2": _ms(floor_nrmse, w), "white2": 0,
-                                 "floor_runs": list(map(float, floor_nrmse)), "ref": ref.effect, "ref_held2": _held(ref, w),
-                                 "ref_fit2": _ms(ref.fit, w), "ref_held_runs": list(map(float, ref.heldout)),
-                                 "ref_fit_runs": list(map(float, ref.fit)), "pairs": rows, "pid": os.getpid()}) + "\n")
     if pick == len(keep) - 1:
         return None
     return found.states[keep[pick]], built[keep[pick]]
@@ -175,8 +160,6 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
             floor = np.sqrt(noise_nrmse**2 + own)
             if second is None:
                 second = _needs_second(first, found.lengths, floor)
-                import os
-                second = second or bool(os.environ.get("GW_FORCE2"))
             if second:
                 others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict], *NOT_FROM_RUNS)]
                 extra = _second(objs, base, first, others, floor, before, executor)

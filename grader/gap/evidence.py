@@ -43,6 +43,8 @@ VISIBLE = 0.1  # of the realistic range's top
 #: without it, were the deficit a unit normal; on 50 benchmark datasets with no effect its spread was 0.8 and it
 #: never passed 1.5).
 DEFICIT_Z = 2.0
+#: Beside an effect the runs name, whose fit may bias Kq by a per cent, the deficit must reach this many.
+DEFICIT_Z_BESIDE = 3.0
 Z95 = 1.959964
 
 
@@ -210,6 +212,8 @@ def viscous_from_loop_gain(verdict: Verdict, lg: LoopGainInfo | None) -> Verdict
     """Viscous friction as the verdict (the runs name nothing) or as its second effect (the runs name one effect,
     whose fit gave the Kq compared) when the loop gain shows it (module docstring)."""
     if lg is None or not lg.names_viscous or lg.candidate != verdict.effect or verdict.second_effect is not None:
+        return verdict
+    if verdict.effect != NONE and lg.deficit_z < DEFICIT_Z_BESIDE:
         return verdict
     b, iv = lg.viscous_B.value, lg.viscous_B.interval or (lg.viscous_B.value,) * 2
     return _add(verdict, "viscous_friction",

@@ -6,12 +6,15 @@ the run's NRMSE². So is the instability run over the step and the onset of its 
 are a phase lottery: a model whose frequency is off by a per cent drifts out of phase, and a
 sample-by-sample residual would then measure the phase, not the model, and trap the fit. There the
 oscillation is compared without its phase, in windows of :data:`WINDOW_CYCLES` periods: its mean
-level, its RMS amplitude and its frequency, each of both signals after the same quintic smoothing.
-The frequency enters as the phase a window's frequency error accumulates over the window, times the
-window's amplitude; each window's entries weigh as many samples as it holds. A run whose oscillation
-a model does not reproduce therefore costs what it costs sample by sample, without the lottery. The
-readings' amplitude and rate are corrected for the reading noise σ the smoothing lets through (the
-model's positions carry none).
+level, its RMS amplitude and its frequency (the RMS of the first difference over the RMS, in radians
+per sample), each of both signals after the same quintic smoothing. The frequency enters as its
+relative error times the window's amplitude times :data:`FREQ_WEIGHT`, the amplitude's error times
+:data:`AMP_WEIGHT`; each window's entries weigh as many samples as it holds. A run whose oscillation
+a model does not reproduce therefore costs about what it costs sample by sample, without the lottery
+and its trapped fits. The readings' amplitude and rate are corrected for the reading noise σ the
+smoothing lets through (the model's positions carry none). A run's entries may all carry a
+``weight`` below 1 (:func:`grader.gap.diagnose.analyse` down-weights runs the reading noise makes
+wander, :mod:`grader.gap.spread`).
 """
 
 from __future__ import annotations
@@ -26,12 +29,12 @@ from grader.gap.metrics import oscillation_frequency
 from grader.gap.runs import NOISE_ORDER, NOISE_WINDOW, GapRun, truncated
 
 Array = NDArray[np.float64]
-import os
-ONSET_CYCLES = float(os.environ.get("GW_OC", "4"))
-AMP_WEIGHT = float(os.environ.get("GW_AW", "1"))
-_fw = os.environ.get("GW_FW", "3")
-FREQ_WEIGHT = (lambda w: 2 * np.pi * WINDOW_CYCLES) if _fw == "w" else (lambda w: float(_fw))
+ONSET_CYCLES = 4.0
 WINDOW_CYCLES = 4.0
+#: Weights of a window's amplitude and relative-frequency entries. The amplitude of an oscillation at the margin
+#: of stability also follows the rig's own draw of the noise (a correct linear model misses it by several times
+#: the noise floor), so it weighs less; a frequency error of 1 % costs what 3 % of the amplitude would.
+AMP_WEIGHT, FREQ_WEIGHT = 0.3, 3.0
 #: Bounds on the onset stretch [s] after the command (a run with no readable oscillation takes the upper one).
 ONSET_BOUNDS = (0.05, 0.25)
 MIN_WINDOW = 8  # samples
@@ -74,7 +77,7 @@ class RunObjective:
         mean, amp, rate = _features(x, self.k0, self.w)
         omega = self.rate / np.maximum(self.amp, 1e-12)  # radians per sample, per window
         seen = amp > 1e-3 * self.amp  # the model oscillates in that window: its frequency is defined
-        freq = np.where(seen, rate / np.maximum(amp, 1e-12) - omega, 0.0) * (FREQ_WEIGHT(self.w) / np.maximum(omega, 1e-12)) * self.amp
+        freq = np.where(seen, rate / np.maximum(amp, 1e-12) / np.maximum(omega, 1e-12) - 1.0, 0.0) * FREQ_WEIGHT * self.amp
         weight = np.sqrt(self.w) / norm
         return np.concatenate([head, (mean - self.mean) * weight, (amp - self.amp) * (AMP_WEIGHT * weight), freq * weight])
 

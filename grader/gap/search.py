@@ -14,22 +14,21 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from concurrent.futures import Executor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from grader.gap.backend import Backend
-from grader.gap.candidates import Candidate, combine
+from grader.gap.candidates import N_LINEAR, NONE, Candidate, combine
 from grader.gap.crossval import CrossValidation, cross_validate
 from grader.gap.fit import BatchFitter, FitState, grid_starts
 from grader.gap.objective import RunObjective
 from grader.model.params import RigParams
 
 Array = NDArray[np.float64]
-import os
-PROFILE_WINDOW, FIRST_WINDOW = (None if os.environ.get("GW_PW", "0.25") == "none" else float(os.environ.get("GW_PW", "0.25"))), 0.5  # [s] after each run's command, in the first stages
-PROFILE_ROUNDS, FIRST_ROUNDS, FULL_ROUNDS = 3, 3, int(os.environ.get("GW_FR", "2"))
+PROFILE_WINDOW, FIRST_WINDOW = 0.25, 0.5  # [s] after each run's command, in the first stages
+PROFILE_ROUNDS, FIRST_ROUNDS, FULL_ROUNDS = 3, 3, 2
 
 
 @dataclass(frozen=True)
@@ -49,6 +48,18 @@ def _fitter(objectives: Sequence[RunObjective], base: RigParams, window: float |
     return BatchFitter(cut, base, Backend([o.run for o in cut], executor=executor))
 
 
+def _restarts(full: BatchFitter, states: Sequence[FitState], theta0: Sequence[Array] | None) -> list[Array]:
+    """The linear coordinates every full fit also starts from (the best end is kept): for a second effect, the
+    first effect's optimum; else the baseline and the linear model's (``none``) own full fit, so that no effect,
+    nested as it is in ``none`` at zero magnitude, ends worse than ``none`` because its profile led it astray."""
+    if theta0 is not None:
+        return [np.asarray(theta0[-1], dtype=float)[:N_LINEAR]]
+    k = next((i for i, s in enumerate(states) if s.candidate.effect == NONE), None)
+    if k is None:
+        return [np.zeros(N_LINEAR)]
+    return [np.zeros(N_LINEAR), full.fit(full.rebase([states[k]]), rounds=FULL_ROUNDS)[0].theta[:N_LINEAR]]
+
+
 def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequence[Candidate], *,
            executor: Executor | None = None, theta0: Sequence[Array] | None = None) -> SearchResult:
     """Fit ``candidates`` around ``base`` on the runs of ``objectives`` and cross-validate them (see module
@@ -56,7 +67,11 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
     short, middle, full = (_fitter(objectives, base, w, executor) for w in (PROFILE_WINDOW, FIRST_WINDOW, None))
     states = short.profile(*grid_starts(candidates, theta0), rounds=PROFILE_ROUNDS)
     states = middle.fit(middle.rebase(states), rounds=FIRST_ROUNDS, final_jacobian=False)
-    states = full.fit(full.rebase(states), rounds=FULL_ROUNDS)
+    starts = [states] + [[replace(s, theta=np.concatenate([lin, s.theta[N_LINEAR:]])) for s in states]
+                         for lin in _restarts(full, states, theta0)]
+    ends = full.fit(full.rebase([s for group in starts for s in group]), rounds=FULL_ROUNDS)
+    n = len(states)
+    states = [min(ends[k::n], key=lambda s: s.cost) for k in range(n)]
     return SearchResult(states, cross_validate(full, states), full.lengths)
 
 

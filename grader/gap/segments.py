@@ -83,9 +83,9 @@ def segments_of(run: GapRun, sigma: float) -> list[Segment]:
 
 
 def shares(residual: Array, segments: list[Segment]) -> list[float]:
-    """Each segment's share of the run's squared residual (zeros if the residual is zero)."""
+    """Each segment's share of the run's squared residual (zeros if the residual is zero or not finite)."""
     sq = residual**2
     total = float(sq.sum())
-    if total <= 0:
+    if not total > 0 or not np.isfinite(total):
         return [0.0 for _ in segments]
     return [float(sq[s.i0:s.i1].sum()) / total for s in segments]

@@ -3,10 +3,10 @@
 Score = geometric mean over runs of the held-out NRMSE² (robust to the one run the others
 cannot predict, see :func:`grader.gap.crossval.typical`), times (1 + PENALTY·k) for k extra
 parameters (an effect without free parameters counts one: choosing it is a degree of
-freedom). The best effect is the best-scoring one, or among the effects scoring within CLOSE of
-it the one that fits all runs best (the held-out score carries the folds' refitting noise, the
-fit is the likelihood of models of one size). It is the verdict only if it explains *clearly more
-than noise*, i.e. its evidence E > 1, where E is the smaller of
+freedom). An effect can be the verdict only if it explains *clearly more than noise*, i.e. its
+evidence E > 1 (below); among those, the verdict is the best-scoring one or, among the effects
+scoring within CLOSE of it, the one that fits all runs best (the held-out score carries the folds'
+refitting noise, the fit is the likelihood of models of one size). E is the smaller of
 
 * its held-out gain over ``none`` (1 − its score's ratio to ``none``'s, both unpenalised), in
   units of REL_GAIN, and
@@ -14,9 +14,9 @@ than noise*, i.e. its evidence E > 1, where E is the smaller of
   floor's (an effect the data cannot see fits no better than ``none``, while its held-out
   score still varies from fold to fold);
 
-otherwise the verdict is ``none``. Margin: ln(score of the runner-up / score of the
-verdict) for an effect (0 when the fit chose a verdict scoring no better than the runner-up);
-for ``none``, ln(1/E) of the best effect (how far it falls short).
+with no such effect the verdict is ``none``. Margin: ln(score of the runner-up / score of the
+verdict) for an effect (0 when a runner-up scores better); for ``none``, ln(1/E) of the effect
+that came closest (how far it falls short).
 Candidates the data cannot tell apart from the verdict: for an effect, other effects
 scoring within TIE of it or fitting all runs as well as it (within TIE_FIT of the noise
 floor's mean square: e.g. a delay and a spool lag near the noise); for ``none``, effects
@@ -103,19 +103,25 @@ def evidence(none: Scored, eff: Scored, noise_nrmse: Array, w: Array, gain: floa
 
 def decide(cands: Sequence[Scored], noise_nrmse: Array, weights: Array | None = None, *,
            reference: int | None = None, gain: float = NOISE_GAIN, rel_gain: float = REL_GAIN) -> tuple[int, int, float]:
-    """(verdict, best effect, its evidence): the best-scoring effect if E > 1 against the reference
-    (default ``none``; for a second effect, the first alone, with ``noise_nrmse`` the floor it leaves and
-    a larger ``gain``), else the reference."""
+    """(verdict, best effect, its evidence): among the effects with E > 1 against the reference (default
+    ``none``; for a second effect, the first alone, with ``noise_nrmse`` the floor it leaves and a larger
+    ``gain``), the best (module docstring); without one, the reference, and the effect that came closest.
+    An effect whose fold refits happen to predict the left-out runs better while it fits all runs no better
+    than the reference is no candidate for the verdict."""
     w = np.ones(noise_nrmse.size) if weights is None else weights
     s = scores(cands, w)
     i_none = next(i for i, c in enumerate(cands) if c.effect == NONE) if reference is None else reference
     effects = [i for i in range(len(cands)) if i != i_none]
     if not effects:
         return i_none, i_none, 0.0
-    top = min(effects, key=lambda i: s[i])
-    best = min((i for i in effects if np.log(s[i] / s[top]) < CLOSE), key=lambda i: _ms(cands[i].fit, w))
-    e = evidence(cands[i_none], cands[best], noise_nrmse, w, gain, rel_gain)
-    return (best if e > 1.0 else i_none), best, e
+    e = {i: evidence(cands[i_none], cands[i], noise_nrmse, w, gain, rel_gain) for i in effects}
+    ok = [i for i in effects if e[i] > 1.0]
+    if not ok:
+        closest = max(effects, key=lambda i: e[i])
+        return i_none, closest, e[closest]
+    top = min(ok, key=lambda i: s[i])
+    best = min((i for i in ok if np.log(s[i] / s[top]) < CLOSE), key=lambda i: _ms(cands[i].fit, w))
+    return best, best, e[best]
 
 
 def _ties(cands: Sequence[Scored], s: Array, verdict: int, noise_nrmse: Array, w: Array | None = None) -> list[int]:
@@ -162,13 +168,14 @@ def _confidence(cands: Sequence[Scored], noise_nrmse: Array, verdict: int, seed:
     i_none = next(i for i, c in enumerate(cands) if c.effect == NONE)
     if len(cands) < 2:
         return 1.0
-    rows = np.arange(BOOTSTRAP)
     is_none = np.arange(len(cands)) == i_none
-    top = np.min(np.where(is_none, np.inf, s), axis=1)
-    best = np.argmin(np.where(is_none | (np.log(s / top[:, None]) >= CLOSE), np.inf, fit), axis=1)
-    e = np.minimum((1.0 - held[rows, best] / held[:, i_none]) / REL_GAIN,
-                   (fit[:, i_none] - fit[rows, best]) / (NOISE_GAIN * floor))
-    same = np.where(e > 1.0, best, i_none) == verdict
+    e = np.minimum((1.0 - held / held[:, [i_none]]) / REL_GAIN, (fit[:, [i_none]] - fit) / (NOISE_GAIN * floor[:, None]))
+    ok = (e > 1.0) & ~is_none
+    top = np.min(np.where(ok, s, np.inf), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        close = ok & (np.log(s / top[:, None]) < CLOSE)
+    best = np.argmin(np.where(close, fit, np.inf), axis=1)
+    same = np.where(ok.any(axis=1), best, i_none) == verdict
     if cands[verdict].effect == NONE:
         return float(np.sum(same)) / BOOTSTRAP
     others = np.array([i != verdict and c.effect != NONE for i, c in enumerate(cands)])

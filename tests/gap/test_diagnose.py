@@ -34,7 +34,11 @@ def test_known_effect_is_named_and_sized(analysed: Analysed, effect: str, param:
     assert best.params[param].value == pytest.approx(value, rel=0.1)
     lo, hi = best.params[param].interval or (0.0, 0.0)
     assert lo <= best.params[param].value <= hi
-    assert best.shrink > 0.7
+    # the effect predicts every step and ramp left out of the fit down to its noise level (what remains is noise),
+    # and the instability run, whose growth the rig's own draw of the noise also shapes, nearly so
+    noise = {g.run: g.noise_nrmse for g in d.gap.by_run}
+    assert all(r.heldout_nrmse_after < (2.0 if r.run == "instability" else 1.3) * noise[r.run] for r in best.by_run)
+    assert best.shrink > 0.6
     assert d.verdict.margin > 0 and d.verdict.confidence > 0.8
 
 

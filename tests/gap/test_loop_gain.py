@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from grader.gap.diagnose import analyse
-from grader.gap.evidence import DEFICIT_Z, _damping
+from grader.gap.evidence import DEFICIT_Z, DEFICIT_Z_BESIDE, _damping
 from grader.gap.summary import summary
 from grader.model.linear import plant_coeffs
 from grader.stations import load_station
@@ -68,3 +68,16 @@ def test_no_effect_names_nothing_from_the_loop_gain(make: MakeDataset, tmp_path:
 
 def test_with_a_friction_test_the_loop_gain_is_not_used(analysed) -> None:  # noqa: ANN001 - fixture
     assert analysed("quiet").diagnosis.loop_gain is None
+
+
+def test_viscous_friction_beside_an_effect_the_runs_name(make: MakeDataset, tmp_path: Path) -> None:
+    """The runs name Coulomb friction; the Kq of that fit against the flow test's names viscous friction beside it."""
+    folder = _without_friction_test(make("coulomb_viscous", {"coulomb_friction": {"Fc": 2.0},
+                                                             "viscous_friction": {"B": 1.5}}), tmp_path / "both")
+    d = analyse(folder, effects=FEW).diagnosis
+    assert (d.verdict.effect, d.verdict.second_effect) == ("coulomb_friction", "viscous_friction")
+    assert d.loop_gain is not None and d.loop_gain.candidate == "coulomb_friction"
+    assert d.loop_gain.deficit_z >= DEFICIT_Z_BESIDE
+    lo, hi = d.loop_gain.viscous_B.interval or (0.0, 0.0)
+    assert lo <= 1.5 <= hi
+    assert set(d.verdict.shares) == {"coulomb_friction", "viscous_friction"}

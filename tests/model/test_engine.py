@@ -130,3 +130,19 @@ def test_a_model_too_stiff_to_step_fails_or_is_skipped_instead_of_running_for_ho
     x = position_batch([p, absurd], [Controller(10)] * 2, [orifice] * 2, [r, r]).run()
     assert np.isnan(x[1]).all() and np.isfinite(x[0]).all()
     assert x[0] == pytest.approx(simulate_positions([p], [Controller(10)], [orifice], [r])[0])
+
+
+def test_a_stiff_linear_model_without_events_is_stepped_exactly_whatever_the_substep_cap(station: Station) -> None:
+    """Exact zero-order hold costs one step per sample at any stiffness: a fitter's cap on RK4 substeps does not
+    refuse it (only runs whose cost grows with the stiffness are refused), and nothing changes with the cap."""
+    from grader.model.rig import position_batch
+
+    p = station.params()
+    stiff = p.with_(beta_over_Vt=p.beta_over_Vt * 50, Kce=p.Kce * 20)
+    t = np.arange(0.0, 0.5, p.sample_time)
+    r = np.full(t.size, 0.1)
+    capped = position_batch([stiff], [Controller(10)], [EffectSet()], [r], max_substeps=2).run()[0]
+    assert np.isfinite(capped).all()
+    assert np.array_equal(capped, position_batch([stiff], [Controller(10)], [EffectSet()], [r]).run()[0])
+    friction = EffectSet({"coulomb_friction": {"Fc": 1.0}})
+    assert np.isnan(position_batch([stiff], [Controller(10)], [friction], [r], max_substeps=2).run()[0]).all()

@@ -1,0 +1,95 @@
+"""What the diagnosis searches: the candidates, a current limit's range from the runs' demand, the flow test's
+linear region under an early saturation, and the static tests' say on viscous friction."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from grader.gap.bench import BenchConfig
+from grader.gap.bench_run import _reusable, tasks
+from grader.gap.candidates import NOT_FROM_RUNS, make_candidates
+from grader.gap.evidence import viscous_unexcluded
+from grader.gap.schema import LoopGainInfo, Value, Verdict
+from grader.identify.flow import FlowGainFit
+from grader.stations import load_station
+
+P = load_station("default").params()
+
+
+def test_viscous_friction_is_no_run_candidate_unless_asked_for() -> None:
+    names = [c.effect for c in make_candidates(P)]
+    assert names[0] == "none" and not set(NOT_FROM_RUNS) & set(names)
+    assert "viscous_friction" in [c.effect for c in make_candidates(P, ["viscous_friction"])]
+
+
+@settings(max_examples=30, deadline=None)
+@given(demand=st.floats(2.0, 50.0))
+def test_a_current_limit_is_searched_below_the_current_the_runs_ask_for(demand: float) -> None:
+    sat = next(c for c in make_candidates(P, demand=demand) if c.effect == "valve_saturation")
+    fp = sat.params[0]
+    limits = sat.params[0].grid() * fp.scale
+    assert fp.scale == pytest.approx(min(demand, P.i_max))
+    assert np.all(limits < 0.96 * fp.scale) and np.all(limits > 0.0)  # every start cuts some of the demand
+    assert sat.strength(np.array([0, 0, 0, 1.0])) == 0.0 and sat.strength(np.array([0, 0, 0, 0.5])) == 0.5
+
+
+@pytest.mark.parametrize("limit", [6.0, 9.0, 20.0, 42.0])
+def test_the_flow_tests_kq_holds_when_the_valve_saturates_early(limit: float) -> None:
+    """A rising sweep of ±10 V (±50 mA) against a valve whose flow stops growing at ``limit`` mA."""
+    kq, leak, null = 0.04, 0.11, 0.4
+    volts = np.arange(-10.0, 10.01, 0.5)
+    i = 5.0 * volts - null
+    flow = kq * np.clip(i, -limit, limit)
+    reading = np.abs(flow) + leak + np.random.default_rng(1).normal(0.0, 0.003, volts.size)
+    fit = FlowGainFit(Kamp=5.0).fit(volts, reading)
+    assert fit.Kq_.value == pytest.approx(kq, rel=0.02)
+    lo, hi = fit.Kq_.interval
+    assert lo <= kq <= hi
+    assert not np.any(fit.linear_mask_ & (np.abs(i) > limit + 1.0))  # no saturated reading in the fit
+
+
+def _none_verdict() -> Verdict:
+    return Verdict(effect="none", margin=1.0, runner_up="coulomb_friction", confidence=1.0, indistinguishable_from=[],
+                   explanation="no candidate effect explains clearly more than the noise")
+
+
+def _loop_gain(b_hi: float) -> LoopGainInfo:
+    kq = Value(value=0.0385, unit="in**3/s/mA", interval=(0.038, 0.039))
+    return LoopGainInfo(flow_test_Kq=kq, runs_Kq=kq, deficit=0.001, deficit_z=0.5,
+                        viscous_B=Value(value=0.05, unit="lbf*s/in", interval=(0.0, b_hi)), names_viscous=False)
+
+
+def test_without_a_friction_test_a_none_verdict_says_viscous_friction_is_not_ruled_out() -> None:
+    v = viscous_unexcluded(_none_verdict(), None, _loop_gain(0.6))
+    assert v.indistinguishable_from == ["viscous_friction"] and "friction test" in (v.separating_test or "")
+    assert "up to B = 0.6" in v.explanation
+    assert viscous_unexcluded(_none_verdict(), None, None).indistinguishable_from == ["viscous_friction"]
+    # a loop gain that rules out any visible B, or an effect named: nothing to add
+    assert viscous_unexcluded(_none_verdict(), None, _loop_gain(0.01)).indistinguishable_from == []
+    named = _none_verdict().model_copy(update={"effect": "coulomb_friction"})
+    assert viscous_unexcluded(named, None, None) == named
+
+
+def test_the_benchmark_plan_is_the_seeds_and_a_dataset_is_reused_only_when_it_is_the_same_draw(tmp_path: Path) -> None:
+    cfg = BenchConfig(n=2, pairs=3, seed=11, effects=("none", "coulomb_friction"), friction_test=False)
+    first, again = tasks(cfg, tmp_path), tasks(cfg, tmp_path)
+    assert [t.label for t in first] == ["none", "none", "coulomb_friction", "coulomb_friction", *[t.label for t in first[4:]]]
+    assert len(first) == 7 and all("+" in t.label for t in first[4:])
+    assert [t.truth.to_quantities() for t in first] == [t.truth.to_quantities() for t in again]
+    task = first[2]
+    assert not _reusable(task)
+    task.folder.mkdir()
+    (task.folder / "manifest.json").write_text("{}", encoding="utf-8")
+    truth = task.folder.parent / f"{task.folder.name}.truth.json"
+    kept = {"effects": task.truth.to_quantities(), "station": task.station.model_dump(mode="json")}
+    truth.write_text(json.dumps(kept), encoding="utf-8")
+    assert _reusable(task)
+    kept["effects"] = {"coulomb_friction": {"Fc": "9 lbf"}}
+    truth.write_text(json.dumps(kept), encoding="utf-8")
+    assert not _reusable(task)
