@@ -44,6 +44,8 @@ RESIDUAL_RATIO = 1.5
 #: SECOND_GAIN times that floor, and act at SECOND_STRENGTH of its realistic range's top or more (a deadband of
 #: 0.03 mA that only lets the fit follow the noise's walk through a backlash names nothing).
 SECOND_REL_GAIN, SECOND_GAIN, SECOND_STRENGTH = 0.10, 0.5, 0.06
+#: A ``none`` verdict whose linear model leaves this many times the noise's mean square searches a pair.
+NONE_GAP = 4.0
 
 
 @dataclass(frozen=True)
@@ -98,7 +100,7 @@ def _significant(cand: SchemaCandidate, effect: str) -> bool:
 
 def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, others: Sequence[Candidate],
             floor_nrmse: Array, before: CrossValidation,
-            executor: Executor | None) -> tuple[FitState, SchemaCandidate] | None:
+            executor: Executor | None) -> tuple[FitState, SchemaCandidate, Scored] | None:
     """The best second effect on top of ``first`` if it explains clearly more than ``first`` alone (beyond the
     floor ``first`` leaves, by :data:`SECOND_GAIN`), else None; an addition whose parameter's 95 % interval
     reaches "no effect" is no second effect (it only moved the first effect's optimum)."""
@@ -115,7 +117,32 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
                         rel_gain=SECOND_REL_GAIN)
     if pick == len(keep) - 1:
         return None
-    return found.states[keep[pick]], built[keep[pick]]
+    return found.states[keep[pick]], built[keep[pick]], scored[keep[pick]]
+
+
+def _pair_beyond_none(objs: Sequence[RunObjective], base: baseline_mod.Baseline, found: SearchResult, rk: Ranking,
+                      candidates: Sequence[Candidate], noise_nrmse: Array, sigma: float, before: CrossValidation,
+                      executor: Executor | None) -> tuple[Ranking, tuple[FitState, SchemaCandidate, Scored] | None]:
+    """No single effect explains the gap, yet the linear model leaves NONE_GAP times the noise's mean square
+    (two effects that each alone fit no better, as a deadband beside a backlash): the effect that fits best
+    with each other effect on top. A pair that explains clearly more than its first effect and than ``none``
+    makes that effect the verdict (margin 0, confidence 0: the runs do not name it alone)."""
+    names = [s.candidate.effect for s in found.states]
+    effects = [i for i, n in enumerate(names) if n != NONE]
+    if not effects:
+        return rk, None
+    k = min(effects, key=lambda i: found.states[i].cost)
+    first = found.states[k]
+    floor = np.sqrt(noise_nrmse**2 + spread(objs, first.candidate.point(base.params, first.theta), sigma))
+    others = [c for c in candidates if c.effect not in (NONE, names[k], *NOT_FROM_RUNS)]
+    extra = _second(objs, base, first, others, floor, before, executor)
+    if extra is None:
+        return rk, None
+    none = _scored(found)[names.index(NONE)]
+    if decide([none, extra[2]], noise_nrmse)[0] != 1:
+        return rk, None
+    order = [k, *(i for i in rk.order if i != k)]
+    return replace(rk, order=order, verdict=k, runner_up=names.index(NONE), margin=0.0, confidence=0.0, ties=[]), extra
 
 
 def _verdict(rk: Ranking, names: list[str]) -> Verdict:
@@ -153,7 +180,7 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
         built = [build.candidate(st, cv, before, float(sc), runs, found.lengths, base)
                  for st, cv, sc in zip(found.states, found.cvs, rk.scores)]
         rk, why = evidence.coulomb_tie(rk, names, built, fr)
-        extra = None
+        extra, alone = None, True
         if names[rk.verdict] != NONE:
             first = found.states[rk.verdict]
             own = spread(objs, first.candidate.point(base.params, first.theta), sigma)
@@ -163,21 +190,25 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
             if second:
                 others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict], *NOT_FROM_RUNS)]
                 extra = _second(objs, base, first, others, floor, before, executor)
+        elif second is not False and _needs_second(found.states[rk.verdict], found.lengths, np.sqrt(NONE_GAP) * noise_nrmse):
+            rk, extra = _pair_beyond_none(objs, base, found, rk, candidates, noise_nrmse, sigma, before, executor)
+            alone = extra is None
     cands = [built[i] for i in rk.order]
     y_aug = _model_y(found.states[rk.verdict], runs, base)
     verdict = _verdict(rk, names)
     if why:
         verdict = verdict.model_copy(update={"explanation": f"{verdict.explanation}; {why}"})
     if extra is not None:
-        state, pair = extra
+        state, pair, _ = extra
         added = state.candidate.names[-1]
         cands.append(pair)
         y_aug = _model_y(state, runs, base)
         first = cands[0].shrink / pair.shrink if pair.shrink > 0 else 1.0
         share = build.r6(min(max(first, 0.0), 1.0))
+        text = (f"{verdict.explanation}; adding {added} on top explains clearly more" if alone else
+                f"no single effect explains the gap clearly, {verdict.effect} with {added} on top does")
         verdict = verdict.model_copy(update={
-            "second_effect": added, "shares": {verdict.effect: share, added: build.r6(1.0 - share)},
-            "explanation": f"{verdict.explanation}; adding {added} on top explains clearly more"})
+            "second_effect": added, "shares": {verdict.effect: share, added: build.r6(1.0 - share)}, "explanation": text})
     return cands, y_aug, verdict
 
 
