@@ -25,6 +25,7 @@ from grader.gap.figures import CandidatesFigure, RunFigure
 
 Array = NDArray[np.float64]
 DPI = 130
+PNG_LEVEL = 3
 SEGMENT_COLOURS = {"rise": "#e0ecf4", "overshoot": "#fde0dd", "settling": "#fff7bc", "steady_state": "#e5f5e0",
                    "tracking": "#efedf5", "oscillation": "#fee6ce"}
 MEASURED, LINEAR, AUGMENTED = "#222222", "#d95f02", "#1b9e77"
@@ -40,15 +41,18 @@ RUN_MARGINS = {"left": 0.105, "right": 0.985, "top": 0.89, "bottom": 0.165, "hsp
 
 def png(fig: Figure, *, tight: bool = True) -> bytes:
     """PNG bytes at :data:`DPI`; ``tight`` crops to the drawn content. An untrimmed figure is stored as RGB:
-    the figures are opaque, and an alpha channel would cost a third more time to compress."""
+    the figures are opaque, and an alpha channel would cost a third more time to compress. zlib level
+    :data:`PNG_LEVEL`: a third less time than the default 6 for a tenth more bytes."""
     buffer = io.BytesIO()
     if tight:
-        fig.savefig(buffer, format="png", dpi=DPI, bbox_inches="tight", metadata={"Software": None})
+        fig.savefig(buffer, format="png", dpi=DPI, bbox_inches="tight", metadata={"Software": None},
+                    pil_kwargs={"compress_level": PNG_LEVEL})
         return buffer.getvalue()
     fig.set_dpi(DPI)
     canvas = FigureCanvasAgg(fig)
     canvas.draw()
-    Image.fromarray(np.asarray(canvas.buffer_rgba())).convert("RGB").save(buffer, format="png", dpi=(DPI, DPI))
+    Image.fromarray(np.asarray(canvas.buffer_rgba())).convert("RGB").save(buffer, format="png", dpi=(DPI, DPI),
+                                                                            compress_level=PNG_LEVEL)
     return buffer.getvalue()
 
 

@@ -9,7 +9,10 @@ Kamp, keep the linear region (saturation excluded), and fit
 The linear region grows outward from a core round the null: the central half of the
 currents, or less when the flow saturates early (a valve whose current limit is a
 fraction of the amplifier's range): the core then ends short of where a V clipped at
-the plateau, fitted to every reading, saturates.
+the plateau, fitted to every reading, saturates. When fewer than :data:`CORE_MIN` readings
+on a side come before that point (a valve saturating within a volt of its null), no V can be
+fitted to the linear region alone, and Kq is that clipped V's own slope, fitted to every
+reading (the plateau pins the flow there, the few readings near the null the slope).
 """
 
 from __future__ import annotations
@@ -31,13 +34,28 @@ def _fit_v(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float6
 CORE_SHARE, CORE_MIN = 0.9, 2
 
 
-def _saturation_current(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float64]) -> float:
-    """|i − i0| [mA] at which ``q = min(|Kq·(i − i0)|, Qs) + leakage``, fitted to every reading, saturates."""
+def _fit_clipped(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float64]) -> OptimizeResult:
+    """Least squares for ``q = min(|Kq·(i − i0)|, Qs) + leakage`` over every reading; x = (Kq, i0, leakage, Qs).
+    Started from x0's slope and from the steepest rise off the null (a flow that saturates next to the null
+    leaves a gentle overall slope, from which the fit would settle on a near-flat V); the better end is kept."""
     qs0 = float(np.max(q) - x0[2])
-    fit = least_squares(lambda x: np.minimum(np.abs(x[0] * (i - x[1])), x[3]) + x[2] - q,
-                        np.array([*x0, qs0]), method="trf", x_scale="jac")
+    away = np.abs(i - x0[1]) > 0
+    steepest = float(np.max((q[away] - x0[2]) / np.abs(i[away] - x0[1])))
+    fits = [least_squares(lambda x: np.minimum(np.abs(x[0] * (i - x[1])), x[3]) + x[2] - q,
+                          np.array([slope, x0[1], x0[2], qs0]), method="trf", x_scale="jac")
+            for slope in (x0[0], max(steepest, x0[0]))]
+    return min(fits, key=lambda f: float(f.cost))
+
+
+def _saturation_current(fit: OptimizeResult) -> float:
+    """|i − i0| [mA] at which the clipped V of :func:`_fit_clipped` saturates."""
     kq, qs = abs(float(fit.x[0])), float(fit.x[3])
     return qs / kq if kq > 0 and qs > 0 else float("inf")
+
+
+def _early_saturation(d: NDArray[np.float64], d_sat: float) -> bool:
+    """Fewer than CORE_MIN readings on a side of the null before the flow saturates (``d`` = i − i0 [mA])."""
+    return any(int(np.sum((np.sign(d) == side) & (np.abs(d) <= CORE_SHARE * d_sat))) < CORE_MIN for side in (1.0, -1.0))
 
 
 def _core(d: NDArray[np.float64], d_sat: float) -> NDArray[np.bool_]:
@@ -49,11 +67,11 @@ def _core(d: NDArray[np.float64], d_sat: float) -> NDArray[np.bool_]:
     return keep
 
 
-def _linear_region(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """Points on the V: start from the core (:func:`_core`) and grow each side outward until a
-    point leaves the fitted V by more than 4 σ or 1 % (saturation begins there)."""
+def _linear_region(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float64], d_sat: float) -> NDArray[np.bool_]:
+    """Points on the V: start from the core (:func:`_core`, cut short of ``d_sat`` [mA]) and grow each side
+    outward until a point leaves the fitted V by more than 4 σ or 1 % (saturation begins there)."""
     d = i - x0[1]
-    keep = _core(d, _saturation_current(i, q, x0))
+    keep = _core(d, d_sat)
     for side in (1.0, -1.0):
         outer = np.flatnonzero((np.sign(d) == side) & ~keep)
         for k in outer[np.argsort(np.abs(d[outer]))]:
@@ -90,15 +108,22 @@ class FlowGainFit:
             raise IdentificationError("flow test: readings must span both sides of the valve null")
         slope0 = np.polyfit(i, side * (q - q[null]), 1)[0]
         x0 = np.array([abs(slope0), i[null], q[null]])
-        mask = _linear_region(i, q, x0)
-        res = _fit_v(i[mask], q[mask], x0)
-        dof = int(mask.sum()) - 3
+        clipped = _fit_clipped(i, q, x0)
+        d_sat = _saturation_current(clipped)
+        if _early_saturation(i - x0[1], d_sat):
+            res, mask = clipped, np.abs(i - clipped.x[1]) < d_sat
+            res.x[0] = abs(res.x[0])
+            method = "min(|Kq·(i−i0)|, Qs) + leakage fitted to every reading (the flow saturates next to the null)"
+        else:
+            mask = _linear_region(i, q, x0, d_sat)
+            res = _fit_v(i[mask], q[mask], x0)
+            method = "|Kq·(i−i0)| + leakage fitted over the linear region (saturation excluded)"
+        dof = res.fun.size - res.x.size
         s2 = float(res.fun @ res.fun / max(dof, 1))
         cov = s2 * np.linalg.pinv(res.jac.T @ res.jac)
         se = np.sqrt(np.diag(cov))
         note = {"points_used": float(mask.sum()), "points": float(v.size), "Kamp [mA/V]": self.Kamp}
-        self.Kq_ = Estimate(float(res.x[0]), "in**3/s/mA", float(se[0]),
-                            "|Kq·(i−i0)| + leakage fitted over the linear region (saturation excluded)", note, dof)
+        self.Kq_ = Estimate(float(res.x[0]), "in**3/s/mA", float(se[0]), method, note, dof)
         self.null_current_ = Estimate(float(res.x[1]), "mA", float(se[1]), "null of the same fit", note, dof)
         self.leakage_ = Estimate(float(res.x[2]), "in**3/s", float(se[2]), "constant internal leakage of the same fit",
                                  note, dof).clipped_below(0.0)

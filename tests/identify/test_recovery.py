@@ -73,6 +73,20 @@ def test_flow_fit_excludes_saturation_and_subtracts_leakage() -> None:
     assert not fit.linear_mask_[0] and not fit.linear_mask_[-1]
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_flow_fit_of_a_valve_saturating_next_to_its_null(seed: int) -> None:
+    """A current limit of 4.5 mA (0.9 V at Kamp 5 mA/V) leaves one reading each side on the V: Kq comes from
+    the clipped V over every reading, within its interval, not from a near-flat V through the plateau."""
+    rng = np.random.default_rng(seed)
+    v = np.arange(-10, 10.01, 0.5)
+    i = np.clip(5.0 * v, -4.5, 4.5) - 0.4
+    q = np.abs(0.05 * i) + 0.11 + rng.normal(0, 0.006, v.size)
+    fit = FlowGainFit(Kamp=5.0).fit(v, np.abs(q))
+    lo, hi = fit.Kq_.interval
+    assert lo < 0.05 < hi and hi - lo < 0.05
+    assert "every reading" in fit.Kq_.method and fit.linear_mask_.sum() <= 5
+
+
 def test_friction_fit_says_whether_B_is_distinguishable() -> None:
     rng = np.random.default_rng(0)
     v = np.linspace(0.5, 6, 12)
