@@ -48,31 +48,41 @@ def _fitter(objectives: Sequence[RunObjective], base: RigParams, window: float |
     return BatchFitter(cut, base, Backend([o.run for o in cut], executor=executor))
 
 
-def _restarts(full: BatchFitter, states: Sequence[FitState], theta0: Sequence[Array] | None) -> list[Array]:
-    """The linear coordinates every full fit also starts from (the best end is kept): for a second effect, the
-    first effect's optimum; else the baseline and the linear model's (``none``) own full fit, so that no effect,
-    nested as it is in ``none`` at zero magnitude, ends worse than ``none`` because its profile led it astray."""
-    if theta0 is not None:
-        return [np.asarray(theta0[-1], dtype=float)[:N_LINEAR]]
-    k = next((i for i, s in enumerate(states) if s.candidate.effect == NONE), None)
-    if k is None:
-        return [np.zeros(N_LINEAR)]
-    return [np.zeros(N_LINEAR), full.fit(full.rebase([states[k]]), rounds=FULL_ROUNDS)[0].theta[:N_LINEAR]]
+def _restarts(states: Sequence[FitState], theta0: Sequence[Array] | None) -> list[Array]:
+    """The linear coordinates every full fit also starts from (the better end is kept): for a second effect, the
+    first effect's optimum; else the baseline's (a profile can lead an effect astray, e.g. a spool lag into a
+    slower mode that then holds the whole-run fit)."""
+    return [np.zeros(N_LINEAR) if theta0 is None else np.asarray(theta0[-1], dtype=float)[:N_LINEAR]]
+
+
+def _worse_than_none(ends: Sequence[FitState]) -> list[int]:
+    """The full fits that ended worse than ``none``'s, which nests in every effect at zero magnitude: such an
+    effect can never truly fit worse, its fit was led astray."""
+    ref = next((i for i, s in enumerate(ends) if s.candidate.effect == NONE), None)
+    return [] if ref is None else [k for k, s in enumerate(ends) if s.cost > ends[ref].cost]
 
 
 def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequence[Candidate], *,
            executor: Executor | None = None, theta0: Sequence[Array] | None = None) -> SearchResult:
     """Fit ``candidates`` around ``base`` on the runs of ``objectives`` and cross-validate them (see module
-    docstring); ``theta0`` are the profile's starting points (default: the baseline, zero magnitudes)."""
+    docstring); ``theta0`` are the profile's starting points (default: the baseline, zero magnitudes). In a
+    first search, a full fit that ends worse than ``none`` starts once more from ``none``'s optimum."""
     short, middle, full = (_fitter(objectives, base, w, executor) for w in (PROFILE_WINDOW, FIRST_WINDOW, None))
     states = short.profile(*grid_starts(candidates, theta0), rounds=PROFILE_ROUNDS)
     states = middle.fit(middle.rebase(states), rounds=FIRST_ROUNDS, final_jacobian=False)
     starts = [states] + [[replace(s, theta=np.concatenate([lin, s.theta[N_LINEAR:]])) for s in states]
-                         for lin in _restarts(full, states, theta0)]
+                         for lin in _restarts(states, theta0)]
     ends = full.fit(full.rebase([s for group in starts for s in group]), rounds=FULL_ROUNDS)
     n = len(states)
-    states = [min(ends[k::n], key=lambda s: s.cost) for k in range(n)]
-    return SearchResult(states, cross_validate(full, states), full.lengths)
+    ends = [min(ends[k::n], key=lambda s: s.cost) for k in range(n)]
+    redo = _worse_than_none(ends) if theta0 is None else []
+    if redo:
+        lin = next(s for s in ends if s.candidate.effect == NONE).theta[:N_LINEAR]
+        again = full.fit(full.rebase([replace(states[k], theta=np.concatenate([lin, states[k].theta[N_LINEAR:]]))
+                                      for k in redo]), rounds=FULL_ROUNDS)
+        for k, s in zip(redo, again):
+            ends[k] = min(ends[k], s, key=lambda x: x.cost)
+    return SearchResult(ends, cross_validate(full, ends), full.lengths)
 
 
 def second_effect(objectives: Sequence[RunObjective], base: RigParams, first: FitState, others: Sequence[Candidate], *,
