@@ -43,8 +43,12 @@ from grader.model.rig_setup import DAC_LIMIT
 Array = NDArray[np.float64]
 RATED_FLOW = 0.5 * 231.0 / 60.0  # 0.5 gpm [in³/s]
 TYPICAL = {"beta_over_Vt": 2.0e4, "Kce": 7.0e-4}
-#: The loop fit moves ln β/Vt, ln Kce (and ln Kq) at most this far from its start (a factor of 55).
+#: The loop fit moves ln β/Vt, ln Kce (and ln Kq) at most this far from its start (a factor of 55) ...
 LOG_SPAN = 4.0
+#: ... and ln β/Vt at most this far (a factor of 2.7) from the one the instability run's oscillation gives: its
+#: frequency pins β/Vt (ω² ∝ β/Vt) even where the runs hold more than the linear loop can follow (a valve that
+#: saturates at a third of the amplifier's current drove a free fit to the bound, 55 times the truth).
+OSC_SPAN = 1.0
 
 
 @dataclass(frozen=True)
@@ -85,27 +89,29 @@ def _linear_part(run: GapRun, p: RigParams) -> int:
     return int(over[0]) if over.size else run.n
 
 
-def _start_from_oscillation(runs: Sequence[GapRun], p: RigParams) -> tuple[RigParams, str]:
-    """β/Vt and Kce from the instability run, as the students do (else typical values)."""
+def _oscillation(runs: Sequence[GapRun], p: RigParams) -> tuple[RigParams | None, str]:
+    """``p`` with β/Vt and Kce from the instability run's oscillation, and where they come from; None (and why
+    not) without a usable oscillation."""
     inst = [r for r in runs if r.kind == "instability"]
     if not inst:
-        return p, "typical β/Vt and Kce (no instability run)"
+        return None, "typical β/Vt and Kce (no instability run)"
     run = inst[0]
     try:
         osc = OscillationFit().fit(run.t, run.y, start=run.start)
         if not osc.usable_:
-            return p, f"typical β/Vt and Kce ({osc.why_not_})"
+            return None, f"typical β/Vt and Kce ({osc.why_not_})"
         bv, kce = coefficient_match(omega=osc.omega_.value, kp_crit=run.controller.Kp, A=p.A, M=p.M, Kamp=p.Kamp,
                                     Kq=p.Kq, k_fb=p.k_fb)
         p = match_sampled_poles(p.with_(beta_over_Vt=bv, Kce=kce), kp=run.controller.Kp, sigma=osc.sigma_.value,
                                 omega=osc.omega_.value)
     except (IdentificationError, GraderError):
-        return p, "typical β/Vt and Kce (the instability run shows no clean oscillation)"
+        return None, "typical β/Vt and Kce (the instability run shows no clean oscillation)"
     return p, f"oscillation of run {run.name} at Kp = {run.controller.Kp:g}"
 
 
-def fit_loop(runs: Sequence[GapRun], p0: RigParams, *, fit_kq: bool) -> RigParams:
-    """Least squares of the linear loop on the runs' linear parts: ln β/Vt, ln Kce (and ln Kq)."""
+def fit_loop(runs: Sequence[GapRun], p0: RigParams, *, fit_kq: bool, bv_span: float = LOG_SPAN) -> RigParams:
+    """Least squares of the linear loop on the runs' linear parts: ln β/Vt (within ``bv_span`` of p0's), ln Kce
+    (and ln Kq)."""
     spans = [_linear_part(r, p0) for r in runs]
 
     def model(x: Array) -> RigParams:
@@ -122,8 +128,8 @@ def fit_loop(runs: Sequence[GapRun], p0: RigParams, *, fit_kq: bool) -> RigParam
             parts.append((y - run.y[:n]) / (run.scale * np.sqrt(n)))
         return np.concatenate(parts) if parts else np.zeros(1)
 
-    n = 3 if fit_kq else 2  # each within a factor e^LOG_SPAN of its start: runs the linear model cannot follow
-    res = least_squares(resid, np.zeros(n), bounds=(-LOG_SPAN, LOG_SPAN), x_scale=1.0)  # must not drive it to 1e23
+    span = np.array([bv_span, LOG_SPAN, LOG_SPAN][:3 if fit_kq else 2])  # runs the linear model cannot follow
+    res = least_squares(resid, np.zeros(span.size), bounds=(-span, span), x_scale=1.0)  # must not drive it to 1e23
     return model(res.x)
 
 
@@ -145,9 +151,9 @@ def from_runs(ds: Dataset, runs: Sequence[GapRun], implied_kfb: float | None) ->
     else:
         kq = RATED_FLOW / ds.given["i_max"]
         notes.append("no flow test: Kq fitted to the runs (nominal start 0.5 gpm / rated current)")
-    p0 = _given_params(ds, kq, kpot, TYPICAL["beta_over_Vt"], TYPICAL["Kce"])
-    p0, start = _start_from_oscillation(runs, p0)
-    p = fit_loop(runs, p0, fit_kq=ds.flow_test is None)
+    typical = _given_params(ds, kq, kpot, TYPICAL["beta_over_Vt"], TYPICAL["Kce"])
+    osc, start = _oscillation(runs, typical)
+    p = fit_loop(runs, osc or typical, fit_kq=ds.flow_test is None, bv_span=LOG_SPAN if osc is None else OSC_SPAN)
     return Baseline(p, "runs", f"linear loop fitted to the runs, starting from the {start}", tuple(notes))
 
 

@@ -15,6 +15,7 @@ from grader.gap.figures import plot_helpers
 from grader.gap.report import _render_plots, write_outputs
 from grader.gap.schema import Diagnosis, diagnosis_json, json_schema
 from grader.gap.summary import effect_name
+from grader.stations import load_station
 
 from .conftest import FEW, MakeDataset
 
@@ -145,3 +146,21 @@ def test_two_effects_are_both_named_with_parameters_and_shares(make: MakeDataset
     assert "the augmented model adds " + " + ".join(
         effect_name(e) for e in pair.effect.split("+")) in page
     assert "On top of it" in page and "shares of that shrink" in page
+
+
+def test_a_valve_saturating_early_keeps_the_oscillations_stiffness(make: MakeDataset, tmp_path: Path) -> None:
+    """Without a friction test the loop comes from the runs. A valve limited to 12 mA (the amplifier gives 50)
+    clips the steps and the instability run, which the linear loop cannot follow; the instability run's
+    frequency still pins β/Vt, so the baseline stays near it and the fit names the limit."""
+    root = tmp_path / "ds"
+    shutil.copytree(make("early_saturation", {"valve_saturation": {"i_max": 12.0}}), root)
+    manifest = json.loads((root / "manifest.json").read_text(encoding="utf-8"))
+    manifest.pop("friction")
+    (root / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
+    d = analyse(root, effects=["valve_saturation", "valve_deadband"]).diagnosis
+    truth = load_station("default").params().beta_over_Vt
+    assert d.baseline.source == "runs"
+    assert truth / 3 < d.baseline.params["beta_over_Vt"].value < 3 * truth
+    assert d.verdict.effect == "valve_saturation"
+    lo, hi = d.candidates[0].params["i_max"].interval
+    assert lo <= 12.0 <= hi
