@@ -31,6 +31,7 @@ from grader.gap.schema import (
 )
 from grader.gap.segments import Segment, shares
 from grader.keys import MODEL_UNITS
+from grader.precision import round_group
 from grader.model import zloop
 
 Array = NDArray[np.float64]
@@ -95,13 +96,20 @@ def readoffs(runs: Sequence[GapRun], y_lin: Sequence[Array], y_aug: Sequence[Arr
            "instability": [("oscillation_frequency", "Hz", metrics.oscillation_frequency)]}
     for i, run in enumerate(runs):
         for q, unit, f in fns[run.kind]:
-            aug = None if y_aug is None else r6(f(run, y_aug[i]))
-            out.append(ReadOff(quantity=q, run=run.name, unit=unit, measured=r6(f(run, run.y)),  # type: ignore[arg-type]
-                               predicted=r6(f(run, y_lin[i])), augmented=aug))
+            vals = _on_grid([f(run, run.y), f(run, y_lin[i]), *([] if y_aug is None else [f(run, y_aug[i])])],
+                            {"in": run.scale, "%": 100.0}.get(unit))
+            out.append(ReadOff(quantity=q, run=run.name, unit=unit, measured=vals[0],  # type: ignore[arg-type]
+                               predicted=vals[1], augmented=vals[2] if y_aug is not None else None))
         if run.kind == "instability":
             out.append(ReadOff(quantity="critical_gain", run=run.name, unit=gain_unit, measured=r6(run.controller.Kp),
                                predicted=None if base_kcrit is None else r6(base_kcrit)))
     return out
+
+
+def _on_grid(values: list[float], ref: float | None) -> list[float]:
+    """Read-offs at 6 significant digits; an error [in] or overshoot [%] on the grid of its run's scale [in] or of
+    100 %, so that a model's numerical zero (a steady-state error of 6e-10 in) is written as 0 on every CPU."""
+    return [r6(v) for v in values] if ref is None else round_group([*values, ref])[:-1]
 
 
 def critical_gain(b: Baseline) -> float | None:
