@@ -181,13 +181,10 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
                  for st, cv, sc in zip(found.states, found.cvs, rk.scores)]
         rk, why = evidence.coulomb_tie(rk, names, built, fr)
         extra, alone = None, True
-        if names[rk.verdict] != NONE:
+        if names[rk.verdict] != NONE and second is not False:
             first = found.states[rk.verdict]
-            own = spread(objs, first.candidate.point(base.params, first.theta), sigma)
-            floor = np.sqrt(noise_nrmse**2 + own)
-            if second is None:
-                second = _needs_second(first, found.lengths, floor)
-            if second:
+            floor = np.sqrt(noise_nrmse**2 + spread(objs, first.candidate.point(base.params, first.theta), sigma))
+            if second or _needs_second(first, found.lengths, floor):
                 others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict], *NOT_FROM_RUNS)]
                 extra = _second(objs, base, first, others, floor, before, executor)
         elif second is not False and _needs_second(found.states[rk.verdict], found.lengths, np.sqrt(NONE_GAP) * noise_nrmse):

@@ -48,38 +48,32 @@ def _fitter(objectives: Sequence[RunObjective], base: RigParams, window: float |
     return BatchFitter(cut, base, Backend([o.run for o in cut], executor=executor))
 
 
-def _restarts(states: Sequence[FitState], theta0: Sequence[Array] | None) -> list[Array]:
-    """The linear coordinates every full fit also starts from (the better end is kept): for a second effect, the
-    first effect's optimum; else the baseline's (a profile can lead an effect astray, e.g. a spool lag into a
-    slower mode that then holds the whole-run fit)."""
-    return [np.zeros(N_LINEAR) if theta0 is None else np.asarray(theta0[-1], dtype=float)[:N_LINEAR]]
-
-
-def _worse_than_none(ends: Sequence[FitState]) -> list[int]:
-    """The full fits that ended worse than ``none``'s, which nests in every effect at zero magnitude: such an
-    effect can never truly fit worse, its fit was led astray."""
-    ref = next((i for i, s in enumerate(ends) if s.candidate.effect == NONE), None)
-    return [] if ref is None else [k for k, s in enumerate(ends) if s.cost > ends[ref].cost]
+def _with_linear(states: Sequence[FitState], which: Sequence[int], lin: Array) -> list[FitState]:
+    """``states[k]`` for each k of ``which`` with its linear coordinates set to ``lin`` (its magnitudes kept)."""
+    return [replace(states[k], theta=np.concatenate([lin, states[k].theta[N_LINEAR:]])) for k in which]
 
 
 def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequence[Candidate], *,
            executor: Executor | None = None, theta0: Sequence[Array] | None = None) -> SearchResult:
     """Fit ``candidates`` around ``base`` on the runs of ``objectives`` and cross-validate them (see module
-    docstring); ``theta0`` are the profile's starting points (default: the baseline, zero magnitudes). In a
-    first search, a full fit that ends worse than ``none`` starts once more from ``none``'s optimum."""
+    docstring); ``theta0`` are the profile's starting points (default: the baseline, zero magnitudes).
+
+    Every whole-run fit starts twice, keeping the better end: from where the short windows led it and from
+    the baseline's linear coordinates (for a second effect, the first effect's optimum's), since a profile can
+    lead an effect astray (a spool lag into a slower mode that then holds the fit). In a first search, a fit
+    that still ends worse than ``none``, which nests in every effect at zero magnitude, starts once more from
+    ``none``'s optimum."""
     short, middle, full = (_fitter(objectives, base, w, executor) for w in (PROFILE_WINDOW, FIRST_WINDOW, None))
     states = short.profile(*grid_starts(candidates, theta0), rounds=PROFILE_ROUNDS)
     states = middle.fit(middle.rebase(states), rounds=FIRST_ROUNDS, final_jacobian=False)
-    starts = [states] + [[replace(s, theta=np.concatenate([lin, s.theta[N_LINEAR:]])) for s in states]
-                         for lin in _restarts(states, theta0)]
-    ends = full.fit(full.rebase([s for group in starts for s in group]), rounds=FULL_ROUNDS)
     n = len(states)
-    ends = [min(ends[k::n], key=lambda s: s.cost) for k in range(n)]
-    redo = _worse_than_none(ends) if theta0 is None else []
+    lin0 = np.zeros(N_LINEAR) if theta0 is None else np.asarray(theta0[-1], dtype=float)[:N_LINEAR]
+    ends = full.fit(full.rebase([*states, *_with_linear(states, range(n), lin0)]), rounds=FULL_ROUNDS)
+    ends = [min(ends[k], ends[n + k], key=lambda s: s.cost) for k in range(n)]
+    ref = next((k for k, s in enumerate(ends) if s.candidate.effect == NONE), None)
+    redo = [] if theta0 is not None or ref is None else [k for k, s in enumerate(ends) if s.cost > ends[ref].cost]
     if redo:
-        lin = next(s for s in ends if s.candidate.effect == NONE).theta[:N_LINEAR]
-        again = full.fit(full.rebase([replace(states[k], theta=np.concatenate([lin, states[k].theta[N_LINEAR:]]))
-                                      for k in redo]), rounds=FULL_ROUNDS)
+        again = full.fit(full.rebase(_with_linear(states, redo, ends[ref].theta[:N_LINEAR])), rounds=FULL_ROUNDS)
         for k, s in zip(redo, again):
             ends[k] = min(ends[k], s, key=lambda x: x.cost)
     return SearchResult(ends, cross_validate(full, ends), full.lengths)

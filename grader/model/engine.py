@@ -365,6 +365,12 @@ def _run_batch(par, ctl, r, noise, K, m, Y, U, X):  # noqa: ANN001, ANN201, N803
         _run(par[j], ctl[j], r[j], noise[j], K[j], m[j], Y[j], U[j], X[j])
 
 
+def stepped(a: RigArrays) -> NDArray[np.bool_]:
+    """Runs whose cost grows with their fastest mode, by the plant's own predicates: RK4 substeps where it is not
+    linear between events, or events to locate; a linear run without events is one exact step per sample."""
+    return np.array([not plant.is_linear.py_func(p) or plant.has_events.py_func(p) for p in plant.pack(a)], dtype=bool)
+
+
 def run(a: RigArrays, r: Array, noise: Array, K: NDArray[np.int64], m: NDArray[np.int64]) -> tuple[Array, Array, Array]:
     """(Y, U, X), each (n, Kmax): measured y [in], u [V] and true x [in] of each run for commands
     ``r`` (n, Kmax) [in] and reading noise (n, Kmax) [in]; run j uses its first K[j] samples and

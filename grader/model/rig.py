@@ -44,7 +44,7 @@ MAX_SUBSTEPS = 2000
 def _engine_run(a: RigArrays, r_k: Array, noise: Array, K: NDArray[np.int64], substeps: int | None, *,
                 too_fast: str = "raise", max_substeps: int = MAX_SUBSTEPS) -> tuple[Array, Array, Array]:
     """The compiled engine on padded per-run rows (imported here: numba loads on first use). A run whose
-    cost grows with its fastest mode (:meth:`RigArrays.stepped`) and whose fastest mode needs more than
+    cost grows with its fastest mode (:func:`grader.model.engine.stepped`) and whose fastest mode needs more than
     ``max_substeps`` per sample is an error (``too_fast="raise"``) or, for a fitter's trial model (``"nan"``),
     not simulated: its rows are NaN. A linear run without events takes one exact step per sample at any
     stiffness."""
@@ -53,7 +53,7 @@ def _engine_run(a: RigArrays, r_k: Array, noise: Array, K: NDArray[np.int64], su
     m = a.substeps() if substeps is None else np.full(a.n, substeps, dtype=np.int64)
     if substeps is not None and substeps < 1:
         raise SimulationError(f"substeps must be >= 1, got {substeps}")
-    fast = (m > max_substeps) & a.stepped()
+    fast = (m > max_substeps) & engine.stepped(a)
     if fast.any() and too_fast == "raise":
         j = int(np.flatnonzero(fast)[0])
         raise SimulationError(f"run {j}: the rig's fastest mode needs {int(m[j])} substeps per sample (more than "

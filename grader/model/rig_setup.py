@@ -66,12 +66,6 @@ class RigArrays:
     def n(self) -> int:
         return self.A.size
 
-    def stepped(self) -> NDArray[np.bool_]:
-        """Runs whose cost grows with their fastest mode: RK4 substeps (orifice law, deadband on a moving spool)
-        or stick-slip events located on the flow; a linear run without events is one exact step per sample."""
-        nonlinear = (self.inv_Ps > 0.0) | ((self.spool > 0.0) & (self.half_db > 0.0))
-        return nonlinear | (self.Fc > 0.0)
-
     def substeps(self) -> NDArray[np.int64]:
         """Substeps per sample period of each run, so that |lambda|·h <= STEP_FACTOR for its fastest mode."""
         a2 = self.B * self.inv_M + self.g * self.Kce
