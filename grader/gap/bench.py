@@ -97,6 +97,10 @@ def effect_params(name: str, rng: np.random.Generator, strength: float | None = 
     return out
 
 
+#: The verdict of a case whose diagnosis failed (a miss, counted apart).
+ERROR = "error"
+
+
 @dataclass(frozen=True)
 class Case:
     """One benchmark dataset's outcome; ``truth`` is one effect, ``none``, or two effects ``a+b``."""

@@ -6,7 +6,7 @@ from collections import Counter
 
 import numpy as np
 
-from grader.gap.bench import SWEEP, Case
+from grader.gap.bench import ERROR, SWEEP, Case
 from grader.gap.candidates import NONE
 
 ABBREV = {"none": "none", "sampling_delay": "delay", "valve_saturation": "sat", "valve_hysteresis": "hyst",
@@ -47,12 +47,12 @@ def _headline(singles: list[Case], pairs: list[Case], cli: list[float], cores: i
     every = singles + pairs
     top2 = _mean([c.truth in (c.verdict, c.runner_up) for c in singles])
     nones = [c for c in singles if c.truth == NONE]
-    shrink = [c.shrink for c in every if c.verdict != NONE]
+    shrink = [c.shrink for c in every if c.verdict not in (NONE, ERROR)]
     secs = np.array([c.seconds for c in every])
     first_right = _mean([c.verdict in c.truths for c in pairs])
     return "\n".join([
         f"datasets: {len(every)} ({len(singles)} with one effect or none, {len(pairs)} with two effects); "
-        f"diagnoses that failed: {sum(c.verdict == 'error' for c in every)}",
+        f"diagnoses that failed: {sum(c.verdict == ERROR for c in every)}",
         f"strict top-1 (one effect or none): {_pct(_mean([c.right for c in singles]))}   strict top-2: {_pct(top2)}",
         f"false positives on none: {_pct(_mean([c.verdict != NONE or c.second is not None for c in nones]))} "
         f"({len(nones)} datasets)",

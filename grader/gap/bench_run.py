@@ -24,14 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from grader.gap.bench import BenchConfig, BenchResult, Case, coverage, effect_params, make_case_dataset, plan, \
+from grader.gap.bench import ERROR, BenchConfig, BenchResult, Case, coverage, effect_params, make_case_dataset, plan, \
     random_station, step_demand
+from grader.gap.candidates import NONE
 from grader.model.effects import EffectSet
 from grader.stations import Station, load_station
-
-#: The verdict of a case whose diagnosis failed.
-ERROR = "error"
-
 
 @dataclass(frozen=True)
 class Task:
@@ -54,7 +51,7 @@ def tasks(cfg: BenchConfig, root: Path) -> list[Task]:
     for k, (names, strength) in enumerate(plan(cfg, rng)):
         station = random_station(base, rng)
         demand = step_demand(station)
-        truth = EffectSet({n: effect_params(n, rng, strength, demand) for n in names if n != "none"})
+        truth = EffectSet({n: effect_params(n, rng, strength, demand) for n in names if n != NONE})
         label = "+".join(names)
         out.append(Task(root / f"{k:04d}_{label}", label, station, truth, int(rng.integers(2**31)), strength,
                         cfg.friction_test))
@@ -111,13 +108,18 @@ def _cases(todo: list[Task], jobs: int) -> Iterator[Case]:
 
 
 def time_cli(folders: list[Path]) -> list[float]:
-    """Wall seconds of ``grader diagnose`` (a new process, report included) on each folder."""
+    """Wall seconds of ``grader diagnose`` (a new process, report included) on each folder where it succeeds;
+    a failure is reported on stderr with the command's last line and left out."""
     out = []
     with tempfile.TemporaryDirectory(prefix="bench-cli-") as tmp:
         for k, folder in enumerate(folders):
             t0 = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "grader.cli", "diagnose", str(folder), "-o", f"{tmp}/{k}"],
-                           check=True, capture_output=True)
+            done = subprocess.run([sys.executable, "-m", "grader.cli", "diagnose", str(folder), "-o", f"{tmp}/{k}"],
+                                  capture_output=True, text=True)
+            if done.returncode != 0:
+                last = (done.stderr.strip().splitlines() or ["(no message)"])[-1]
+                print(f"{folder.name}: grader diagnose exited {done.returncode}: {last}", file=sys.stderr, flush=True)
+                continue
             out.append(time.perf_counter() - t0)
     return out
 

@@ -11,8 +11,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from grader.gap.bench import BenchConfig
-from grader.gap.bench_run import _reusable, tasks
+from grader.gap.bench import ERROR, BenchConfig
+from grader.gap.bench_report import render
+from grader.gap.bench_run import _reusable, run_task, tasks, time_cli
 from grader.gap.candidates import NOT_FROM_RUNS, make_candidates
 from grader.gap.evidence import viscous_unexcluded
 from grader.gap.schema import LoopGainInfo, Value, Verdict
@@ -93,3 +94,18 @@ def test_the_benchmark_plan_is_the_seeds_and_a_dataset_is_reused_only_when_it_is
     kept["effects"] = {"coulomb_friction": {"Fc": "9 lbf"}}
     truth.write_text(json.dumps(kept), encoding="utf-8")
     assert not _reusable(task)
+
+
+def test_a_benchmark_dataset_whose_diagnosis_fails_is_a_counted_miss_not_the_end(tmp_path: Path) -> None:
+    cfg = BenchConfig(n=1, pairs=0, seed=3, effects=("coulomb_friction",), friction_test=False)
+    task = tasks(cfg, tmp_path)[0]
+    task.folder.mkdir()
+    (task.folder / "manifest.json").write_text("{}", encoding="utf-8")  # kept, but no dataset
+    kept = {"effects": task.truth.to_quantities(), "station": task.station.model_dump(mode="json")}
+    (tmp_path / f"{task.folder.name}.truth.json").write_text(json.dumps(kept), encoding="utf-8")
+    case = run_task(task, parallel=False)
+    assert case.verdict == ERROR and not case.right
+    text = render([case], [], 1)
+    assert "diagnoses that failed: 1" in text and "strict top-1 (one effect or none): 0.0 %" in text
+    assert "median held-out shrink (verdicts naming an effect): – (0 verdicts)" in text  # an error is no verdict
+    assert time_cli([task.folder]) == []  # the CLI's failure is reported, not raised
