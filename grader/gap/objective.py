@@ -24,10 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import convolve1d
-from scipy.signal import savgol_coeffs
 
 from grader.gap.metrics import oscillation_frequency
-from grader.gap.runs import NOISE_ORDER, NOISE_WINDOW, GapRun, truncated
+from grader.gap.runs import NOISE_WINDOW, SMOOTH, GapRun, truncated
 
 Array = NDArray[np.float64]
 ONSET_CYCLES = 4.0
@@ -39,9 +38,6 @@ AMP_WEIGHT, FREQ_WEIGHT = 0.3, 3.0
 #: Bounds on the onset stretch [s] after the command (a run with no readable oscillation takes the upper one).
 ONSET_BOUNDS = (0.05, 0.25)
 MIN_WINDOW = 8  # samples
-#: The quintic smoothing's weights, computed once (:func:`scipy.signal.savgol_filter` recomputes them at every
-#: call, which costs four times the filtering on a fit's thousands of calls; it filters with the same convolution).
-SMOOTH = savgol_coeffs(NOISE_WINDOW, NOISE_ORDER)
 
 
 @dataclass(frozen=True)
@@ -99,8 +95,7 @@ def _features(x: Array, k0: int, w: int) -> tuple[Array, Array, Array]:
 
 def _noise_gains() -> tuple[float, float]:
     """Variance of smoothed white noise of unit σ, and of its first difference."""
-    h = SMOOTH
-    return float(h @ h), float(np.sum(np.diff(np.concatenate([[0.0], h, [0.0]])) ** 2))
+    return float(SMOOTH @ SMOOTH), float(np.sum(np.diff(np.concatenate([[0.0], SMOOTH, [0.0]])) ** 2))
 
 
 def objective(run: GapRun, sigma: float = 0.0) -> RunObjective:
