@@ -16,6 +16,7 @@ In order of preference:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,9 +37,11 @@ from grader.identify import (
     match_sampled_poles,
 )
 from grader.keys import read_key
-from grader.model import zloop
+from grader.model.effects import NO_EFFECTS
 from grader.model.params import RigParams
+from grader.model.rig import position_batch
 from grader.model.rig_setup import DAC_LIMIT
+from grader.precision import round_sig
 
 Array = NDArray[np.float64]
 RATED_FLOW = 0.5 * 231.0 / 60.0  # 0.5 gpm [in³/s]
@@ -110,27 +113,32 @@ def _oscillation(runs: Sequence[GapRun], p: RigParams) -> tuple[RigParams | None
 
 
 def fit_loop(runs: Sequence[GapRun], p0: RigParams, *, fit_kq: bool, bv_span: float = LOG_SPAN) -> RigParams:
-    """Least squares of the linear loop on the runs' linear parts: ln β/Vt (within ``bv_span`` of p0's), ln Kce
-    (and ln Kq)."""
+    """Least squares of the linear loop (the compiled engine, no effect) on the runs' linear parts: ln β/Vt
+    (within ``bv_span`` of p0's), ln Kce (and ln Kq), each within its span through x = span·sin(z).
+
+    The same bytes on any CPU: the start is rounded to :data:`~grader.precision.SIGNIFICANT_DIGITS` (the
+    oscillation's fit differs in its last digits between BLAS kernels), the engine uses no BLAS, and MINPACK's
+    Levenberg–Marquardt (``method="lm"``) neither. The valley is flat along Kce where a bound holds β/Vt: a
+    BLAS-based solver's last-digit differences moved the optimum there by 1e-4."""
+    p0 = p0.with_(beta_over_Vt=round_sig(p0.beta_over_Vt), Kce=round_sig(p0.Kce), Kq=round_sig(p0.Kq))
     spans = [_linear_part(r, p0) for r in runs]
-
-    def model(x: Array) -> RigParams:
-        kq = p0.Kq * np.exp(x[2]) if fit_kq else p0.Kq
-        return p0.with_(beta_over_Vt=p0.beta_over_Vt * np.exp(x[0]), Kce=p0.Kce * np.exp(x[1]), Kq=float(kq))
-
-    def resid(x: Array) -> Array:
-        p = model(x)
-        parts = []
-        for run, n in zip(runs, spans):
-            if n < 20:
-                continue
-            y = zloop.response(p, run.controller, run.r[:n] - run.r[0]) + run.r[0]
-            parts.append((y - run.y[:n]) / (run.scale * np.sqrt(n)))
-        return np.concatenate(parts) if parts else np.zeros(1)
-
+    used = [(run, n) for run, n in zip(runs, spans) if n >= 20]
     span = np.array([bv_span, LOG_SPAN, LOG_SPAN][:3 if fit_kq else 2])  # runs the linear model cannot follow
-    res = least_squares(resid, np.zeros(span.size), bounds=(-span, span), x_scale=1.0)  # must not drive it to 1e23
-    return model(res.x)
+
+    def model(z: Array) -> RigParams:
+        x = [s * math.sin(v) for s, v in zip(span, z)]
+        kq = p0.Kq * math.exp(x[2]) if fit_kq else p0.Kq
+        return p0.with_(beta_over_Vt=p0.beta_over_Vt * math.exp(x[0]), Kce=p0.Kce * math.exp(x[1]), Kq=kq)
+
+    def resid(z: Array) -> Array:
+        p = model(z)
+        ys = position_batch([p] * len(used), [run.controller for run, _ in used], [NO_EFFECTS] * len(used),
+                            [run.r[:n] for run, n in used]).run()
+        return np.concatenate([(y - run.y[:n]) / (run.scale * np.sqrt(n)) for y, (run, n) in zip(ys, used)])
+
+    if not used:
+        return p0
+    return model(least_squares(resid, np.zeros(span.size), method="lm").x)
 
 
 def from_runs(ds: Dataset, runs: Sequence[GapRun], implied_kfb: float | None) -> Baseline:

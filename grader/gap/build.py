@@ -16,6 +16,7 @@ from grader.gap.baseline import Baseline
 from grader.gap.candidates import LINEAR, N_LINEAR
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
+from grader.gap.lm import sumsq
 from grader.gap.noise import Noise
 from grader.gap.runs import GapRun
 from grader.gap.schema import (
@@ -163,10 +164,10 @@ def _ar1_inflation(res: Array, lengths: Sequence[int]) -> float:
     for n in lengths:
         r = res[pos:pos + n]
         pos += n
-        ss = float(r @ r)
+        ss = sumsq(r)
         if n < 3 or ss <= 0.0:
             continue
-        rho = min(max(float(r[1:] @ r[:-1]) / ss, 0.0), 0.999)
+        rho = min(max(float(np.sum(r[1:] * r[:-1])) / ss, 0.0), 0.999)
         num += ss * (1.0 + rho) / (1.0 - rho)
         den += ss
     return min(num / den, MAX_INFLATION) if den > 0 else 1.0

@@ -10,6 +10,7 @@ held-out gap. The fold estimates θ_f also give jackknife standard errors of the
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -17,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from grader.gap.fit import BatchFitter, FitState
+from grader.gap.lm import sumsq
 
 Array = NDArray[np.float64]
 FOLD_ROUNDS = 2
@@ -67,6 +69,6 @@ def cross_validate(fitter: BatchFitter, states: Sequence[FitState], *, rounds: i
     res = fitter.residuals(jobs)
     out = []
     for j in range(len(states)):
-        heldout = np.array([float(np.linalg.norm(res[j * n + i])) for i in range(n)])
+        heldout = np.array([math.sqrt(sumsq(res[j * n + i])) for i in range(n)])
         out.append(CrossValidation(heldout, np.array([folds[j * n + i].theta for i in range(n)])))
     return out

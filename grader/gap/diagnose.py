@@ -7,6 +7,7 @@ and how far it shrinks once that effect is added.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
@@ -25,6 +26,7 @@ from grader.gap.backend import Backend, Point, worker
 from grader.gap.candidates import NONE, NOT_FROM_RUNS, Candidate, make_candidates
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
+from grader.gap.lm import sumsq
 from grader.gap.objective import RunObjective, objective
 from grader.gap.runs import GapRun, check_gains, current_demand, prepare_runs
 from grader.gap.schema import Candidate as SchemaCandidate
@@ -78,7 +80,7 @@ def _model_y(state: FitState, runs: Sequence[GapRun], base: baseline_mod.Baselin
 def _fit_nrmse(state: FitState, lengths: Sequence[int]) -> Array:
     """Per-run NRMSE of an all-runs fit (the norm of each run's part of its residual)."""
     ends = np.cumsum(lengths)
-    return np.array([float(np.linalg.norm(state.res[e - n:e])) for n, e in zip(lengths, ends)])
+    return np.array([math.sqrt(sumsq(state.res[e - n:e])) for n, e in zip(lengths, ends)])
 
 
 def _scored(found: SearchResult) -> list[Scored]:

@@ -21,10 +21,10 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from grader.datasets import Dataset
 from grader.errors import IdentificationError
@@ -128,19 +128,16 @@ def quantized(verdict: Verdict, quant: Quantization | None) -> Verdict:
 
 
 def _damping(runs: RigParams, kq: float) -> tuple[float, bool]:
-    """The viscous friction B [lbf·s/in] that, with Kq = ``kq`` and β/Vt, Kce re-fitted, gives the closed loop
-    of ``runs`` (its plant coefficients), and whether it does so exactly: 0 for a Kq at or below the runs', and
-    beyond the largest deficit any B explains, the B that comes closest (not exact). Two B fit (a quadratic): the
-    search from B = 0 finds the smaller, right while B/M is less of the damping than 4β/Vt·Kce."""
-    target = np.array(plant_coeffs(runs))
-
-    def model(x: np.ndarray) -> RigParams:
-        return runs.with_(beta_over_Vt=runs.beta_over_Vt * float(np.exp(x[0])), Kce=runs.Kce * float(np.exp(x[1])),
-                          B=runs.B + float(x[2]), Kq=kq)
-
-    fit = least_squares(lambda x: np.array(plant_coeffs(model(x))) / target - 1.0, np.zeros(3),
-                        bounds=([-3.0, -3.0, 0.0], [3.0, 3.0, 100.0]), xtol=1e-12, ftol=1e-12)
-    return float(fit.x[2]), bool(np.max(np.abs(fit.fun)) < 1e-6)
+    """The viscous friction B [lbf·s/in] to add to ``runs`` so that, with Kq = ``kq`` and β/Vt, Kce re-fitted, its
+    plant coefficients (:func:`~grader.model.linear.plant_coeffs`) are those of ``runs``, and whether some B does
+    so exactly. b0 fixes g = 4β/Vt, a2 then Kce, and a1 leaves a quadratic in B, B² − a2·M·B + M·(a1·M − g·A²) = 0,
+    whose smaller root is right while B/M is less of the damping than g·Kce. Beyond the largest deficit any B
+    explains (no real root), the B that comes closest, a2·M/2, not exact. In closed form: the same bytes on any CPU."""
+    a2, a1, b0 = plant_coeffs(runs)
+    g = b0 * runs.M / (kq * runs.A)
+    disc = (a2 * runs.M) ** 2 - 4.0 * runs.M * (a1 * runs.M - g * runs.A**2)
+    total = 0.5 * (a2 * runs.M - math.sqrt(max(disc, 0.0)))
+    return max(total - runs.B, 0.0), bool(disc >= 0.0 and total >= runs.B)
 
 
 def _log_se(v: Value, quantile: float) -> float:

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from grader.gap.backend import Point
 from grader.gap.candidates import N_LINEAR, Candidate
+from grader.gap.lm import damped_steps, sumsq
 from grader.gap.objective import RunObjective
 from grader.model.params import RigParams
 
@@ -49,7 +50,7 @@ class FitState:
 
     @property
     def cost(self) -> float:
-        return float(self.res @ self.res)
+        return sumsq(self.res)
 
     @property
     def free(self) -> int:
@@ -106,7 +107,7 @@ class BatchFitter:
         res = self.residuals(jobs)
         out = []
         for k in range(len(grid)):
-            j = min(range(len(KCE_LINE)), key=lambda i: float(res[k * len(KCE_LINE) + i] @ res[k * len(KCE_LINE) + i]))
+            j = min(range(len(KCE_LINE)), key=lambda i: sumsq(res[k * len(KCE_LINE) + i]))
             c, th, _ = jobs[k * len(KCE_LINE) + j]
             out.append(FitState(c, every, th, res[k * len(KCE_LINE) + j], n_free=N_LINEAR))
         return out
@@ -139,13 +140,13 @@ class BatchFitter:
         """(λ, θ) of the damped Gauss–Newton steps from ``s``, kept within the bounds."""
         assert s.jac is not None
         lo, hi = s.candidate.bounds()
-        jtj, g = s.jac.T @ s.jac, s.jac.T @ s.res
-        d = np.diag(jtj).copy() + 1e-12
+        lams = s.lam * np.asarray(dampings, dtype=float)
+        steps = damped_steps(np.ascontiguousarray(s.jac), s.res, lams)
         out = []
-        for f in dampings:
+        for lam, d in zip(lams, steps):
             step = np.zeros_like(s.theta)
-            step[:s.free] = np.linalg.solve(jtj + s.lam * f * np.diag(d), -g)
-            out.append((s.lam * f, np.clip(s.theta + step, lo, hi)))
+            step[:s.free] = d
+            out.append((float(lam), np.clip(s.theta + step, lo, hi)))
         return out
 
     def _jacobians(self, states: list[FitState], which: Sequence[int], *, halve_damping: bool = False) -> None:

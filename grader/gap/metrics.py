@@ -9,9 +9,12 @@ oscillation frequency [Hz] (FFT peak of the detrended response after the command
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
+from grader.gap.lm import sumsq
 from grader.gap.runs import GapRun
 from grader.gap.segments import smooth
 
@@ -20,8 +23,8 @@ Array = NDArray[np.float64]
 
 def nrmse(y: Array, y_hat: Array) -> float:
     """‖y − ŷ‖ / ‖y − mean(y)‖."""
-    den = float(np.linalg.norm(y - np.mean(y)))
-    return float(np.linalg.norm(y - y_hat)) / den if den > 0 else float("inf")
+    den = math.sqrt(sumsq(y - np.mean(y)))
+    return math.sqrt(sumsq(y - y_hat)) / den if den > 0 else float("inf")
 
 
 def fit_percent(y: Array, y_hat: Array) -> float:

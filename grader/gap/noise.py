@@ -20,9 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import savgol_filter
 
-from grader.gap.runs import NOISE_ORDER, NOISE_WINDOW, SMOOTH, GapRun
+from grader.gap.runs import NOISE_WINDOW, SMOOTH, GapRun, quintic_smooth
 
 Array = NDArray[np.float64]
 TRIM = 0.98
@@ -47,7 +46,7 @@ class Noise:
 
 def reading_noise(y: Array) -> float:
     """RMS [in] of the noise on the readings ``y`` (see module docstring)."""
-    res = y - savgol_filter(y, NOISE_WINDOW, NOISE_ORDER)
+    res = y - quintic_smooth(y)
     sq = np.sort(res**2)[: max(1, int(TRIM * res.size))]
     centre = float(SMOOTH[NOISE_WINDOW // 2])
     return float(np.sqrt(sq.mean() / TRIMMED_GAUSS / (1.0 - centre)))

@@ -95,7 +95,7 @@ def _features(x: Array, k0: int, w: int) -> tuple[Array, Array, Array]:
 
 def _noise_gains() -> tuple[float, float]:
     """Variance of smoothed white noise of unit σ, and of its first difference."""
-    return float(SMOOTH @ SMOOTH), float(np.sum(np.diff(np.concatenate([[0.0], SMOOTH, [0.0]])) ** 2))
+    return float(np.sum(SMOOTH * SMOOTH)), float(np.sum(np.diff(np.concatenate([[0.0], SMOOTH, [0.0]])) ** 2))
 
 
 def objective(run: GapRun, sigma: float = 0.0) -> RunObjective:

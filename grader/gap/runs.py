@@ -19,7 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import savgol_coeffs, savgol_filter
+from scipy.ndimage import convolve1d
+from scipy.signal import savgol_coeffs
 
 from grader.datasets import Dataset, Run
 from grader.errors import DiagnosisError
@@ -32,9 +33,27 @@ MIN_DURATION = 0.2
 #: Relative disagreement between the manifest gain and the gain ``u`` implies that is an error.
 GAIN_TOLERANCE = 0.1
 NOISE_WINDOW, NOISE_ORDER = 13, 5
-#: The quintic smoothing's weights, computed once (:func:`scipy.signal.savgol_filter` recomputes them at every
-#: call, which costs four times the filtering in a fit's thousands of calls; it filters with the same convolution).
-SMOOTH = savgol_coeffs(NOISE_WINDOW, NOISE_ORDER)
+#: Every weight of the quintic fit over 13 points, evaluated at any of them, is a multiple of 1/9724
+#: (11·13·17·4). Rounded to that grid, the weights are exact: the same bytes on any CPU, where
+#: :func:`scipy.signal.savgol_coeffs`' least squares differs between BLAS kernels in the 14th digit.
+_DENOMINATOR = 9724.0
+#: Row k: the weights of the quintic fitted to a window, evaluated at its k-th point.
+_FIT = np.array([np.round(savgol_coeffs(NOISE_WINDOW, NOISE_ORDER, pos=k, use="dot") * _DENOMINATOR)
+                 for k in range(NOISE_WINDOW)]) / _DENOMINATOR
+#: The quintic smoothing's weights (the centre row), computed once: :func:`scipy.signal.savgol_filter`
+#: recomputes them at every call, which costs four times the filtering in a fit's thousands of calls.
+SMOOTH = _FIT[NOISE_WINDOW // 2].copy()
+
+
+def quintic_smooth(y: Array) -> Array:
+    """The quintic Savitzky–Golay smoothing of ``y`` (at least :data:`NOISE_WINDOW` samples), as
+    :func:`scipy.signal.savgol_filter` (mode ``interp``: the first and last half-windows from the quintic fitted
+    to the first and last window) computes it, with the exact weights above and sums in a fixed order."""
+    h = NOISE_WINDOW // 2
+    out = convolve1d(y, SMOOTH, mode="nearest")
+    out[:h] = np.sum(_FIT[:h] * y[:NOISE_WINDOW], axis=1)
+    out[-h:] = np.sum(_FIT[-h:] * y[-NOISE_WINDOW:], axis=1)
+    return out
 
 
 @dataclass(frozen=True)
@@ -80,7 +99,7 @@ def _on_grid(run: Run, T: float) -> GapRun:
     scale = float(np.std(run.y))
     if scale <= 0:
         raise DiagnosisError(f"run {run.name} ({run.spec.file}): the position never changes; nothing to compare")
-    noise = np.zeros(run.t.size) if run.spec.kind == "instability" else run.y - savgol_filter(run.y, NOISE_WINDOW, NOISE_ORDER)
+    noise = np.zeros(run.t.size) if run.spec.kind == "instability" else run.y - quintic_smooth(run.y)
     return GapRun(run.name, run.spec.kind, run.controller, run.t, run.r, run.y, run.u, start, scale, noise)
 
 
@@ -111,7 +130,7 @@ def implied_feedback_gain(run: GapRun, T: float) -> float | None:
     if use.sum() < 20 or not np.any(np.abs(run.u[use]) > 1e-6):
         return None
     b, u = basis[use], run.u[use]
-    return float(b @ u / (b @ b))
+    return float(np.sum(b * u) / np.sum(b * b))
 
 
 def check_gains(runs: list[GapRun], k_fb: float | None, T: float) -> float | None:

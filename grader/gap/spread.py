@@ -18,11 +18,10 @@ from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import savgol_filter
 
 from grader.gap.backend import Backend, Point
 from grader.gap.objective import RunObjective
-from grader.gap.runs import NOISE_ORDER, NOISE_WINDOW
+from grader.gap.runs import NOISE_WINDOW, quintic_smooth
 
 Array = NDArray[np.float64]
 DRAWS = 3
@@ -31,7 +30,7 @@ SEED = 20261124
 
 def _like_estimate(n: int, sigma: float, rng: np.random.Generator) -> Array:
     w = rng.normal(0.0, sigma, n)
-    return w - savgol_filter(w, NOISE_WINDOW, NOISE_ORDER) if n > NOISE_WINDOW else w
+    return w - quintic_smooth(w) if n > NOISE_WINDOW else w
 
 
 def spread(objectives: Sequence[RunObjective], point: Point, sigma: float, *, draws: int = DRAWS) -> Array:
@@ -49,5 +48,5 @@ def spread(objectives: Sequence[RunObjective], point: Point, sigma: float, *, dr
     for k in range(1, draws + 1):
         for i, o in enumerate(objectives):
             d = o.residual(xs[k * n + i]) - own[i]
-            out[i] += float(d @ d) / draws
+            out[i] += float(np.sum(d * d)) / draws
     return out
