@@ -30,6 +30,8 @@ from grader.model.rig_setup import DAC_LIMIT
 Array = NDArray[np.float64]
 #: Least recorded time after the command starts [s].
 MIN_DURATION = 0.2
+#: Fewest runs: the held-out gap of a run needs a model fitted to another.
+MIN_RUNS = 2
 #: Relative disagreement between the manifest gain and the gain ``u`` implies that is an error.
 GAIN_TOLERANCE = 0.1
 NOISE_WINDOW, NOISE_ORDER = 13, 5
@@ -155,8 +157,10 @@ def check_gains(runs: list[GapRun], k_fb: float | None, T: float) -> float | Non
 
 def prepare_runs(dataset: Dataset, T: float) -> list[GapRun]:
     """All runs of ``dataset`` checked and on the sample grid."""
-    if not dataset.runs:
-        raise DiagnosisError(f"{dataset.root.name}: the manifest lists no runs; the diagnosis needs closed-loop runs")
+    if len(dataset.runs) < MIN_RUNS:
+        listed = "no runs" if not dataset.runs else f"one run ({dataset.runs[0].name})"
+        raise DiagnosisError(f"{dataset.root.name}: the manifest lists {listed}; the diagnosis needs at least "
+                             f"{MIN_RUNS} closed-loop runs (it predicts each run from the model fitted to the others)")
     return [_on_grid(run, T) for run in dataset.runs]
 
 

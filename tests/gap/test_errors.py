@@ -30,6 +30,10 @@ def _no_runs(data: dict) -> None:
     data["runs"] = []
 
 
+def _one_run(data: dict) -> None:
+    data["runs"] = [r for r in data["runs"] if r["name"] == "step_kp25"]
+
+
 def _wrong_gain(data: dict) -> None:
     next(r for r in data["runs"] if r["name"] == "step_kp25")["controller"]["Kp"] = 46
 
@@ -46,6 +50,7 @@ def _short_run(root: Path) -> None:
 
 @pytest.mark.parametrize(("edit", "expected"), [
     (_manifest(_no_runs), "lists no runs"),
+    (_manifest(_one_run), "lists one run (step_kp25); the diagnosis needs at least 2 closed-loop runs"),
     (_short_run, "run step_kp10 (step_kp10.csv): only"),
     (_manifest(_wrong_gain), "run step_kp25: the manifest gives Kp = 46"),
     (_manifest(_slow_clock), "not evenly at the manifest's sample_time of 2 ms"),
