@@ -26,6 +26,7 @@ from grader.model.linear import plant_coeffs
 from grader.model import zloop
 from grader.model.params import Controller, RigParams
 from grader.model.rig_setup import DAC_LIMIT
+from grader.precision import round_sig
 
 
 @dataclass(frozen=True)
@@ -71,11 +72,20 @@ def _coefficient_model(g: Mapping[str, float], feedback: str, kp: float, B: floa
                      sample_time=g["sample_time"], feedback=feedback, supply_pressure=g["supply_pressure"], i_max=g["i_max"])
 
 
+#: Significant digits of Coulomb friction's decrement (see :func:`friction_decrement`).
+DECREMENT_DIGITS = 4
+
+
 def friction_decrement(p: RigParams, kp: float, Fc: float, omega: float) -> float:
     """Rate [in/s] at which Coulomb friction ``Fc`` [lbf] slows the growth of the P loop's oscillation
     amplitude at ``omega`` [rad/s]: its describing function is a damping 4·Fc/(π·a·ω) at amplitude a,
     which lowers the growth rate by ∂σ/∂B times it, so da/dt = σ·a − c with c = −∂σ/∂B·4·Fc/(π·ω)
-    (∂σ/∂B of the sampled loop ``p`` at ``kp``, by a finite difference)."""
+    (∂σ/∂B of the sampled loop ``p`` at ``kp``, by a second-order one-sided difference).
+
+    The same bytes on any CPU: the loop's roots carry last-digit differences between BLAS kernels, which a
+    difference quotient magnifies (to 3e-7 of c with a step of 0.1 % of M·ω, enough to move the growth rate's
+    6th digit). A step of 5 % of M·ω (σ(B) is smooth on the scale of M·ω) and c rounded to
+    :data:`DECREMENT_DIGITS` significant digits, far finer than the describing function's own accuracy, remove it."""
     if Fc <= 0 or omega <= 0:
         return 0.0
 
@@ -83,8 +93,9 @@ def friction_decrement(p: RigParams, kp: float, Fc: float, omega: float) -> floa
         s = np.log(np.roots(zloop.closed_loop(p.with_(B=B), Controller(Kp=kp))[1]).astype(complex)) / p.sample_time
         return float(s[np.argmin(np.abs(s - 1j * omega))].real)
 
-    h = 1e-3 * max(p.M * omega, 1e-6)
-    return max(-(sigma(p.B + h) - sigma(p.B)) / h, 0.0) * 4.0 * Fc / (np.pi * omega)
+    h = 0.05 * max(p.M * omega, 1e-6)
+    slope = (4.0 * sigma(p.B + h) - sigma(p.B + 2.0 * h) - 3.0 * sigma(p.B)) / (2.0 * h)
+    return round_sig(max(-slope, 0.0) * 4.0 * Fc / (np.pi * omega), DECREMENT_DIGITS)
 
 
 def saturation_amplitude(g: Mapping[str, float], kp: float, k_fb: float) -> float:

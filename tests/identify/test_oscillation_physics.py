@@ -69,3 +69,14 @@ def test_friction_decrement_matches_the_loops_damping_sensitivity(station: Stati
 
     assert sigma(p.B) - sigma(p.B + 4 * 2.0 / (np.pi * a * w)) == pytest.approx(c / a, rel=0.05)
     assert saturation_amplitude({"i_max": 50.0, "Kamp": 5.0}, 40.0, 0.8) == pytest.approx(10.0 / 32.0)
+
+
+@pytest.mark.parametrize("ulps", [1, 3, -2])
+def test_friction_decrement_ignores_last_digit_differences(station: Station, ulps: int) -> None:
+    """BLAS kernels change the loop's roots in their last digits; a difference quotient magnified that into
+    the 7th digit of c, and the growth rate fitted with c moved in its 6th (a key differing between CPUs)."""
+    p = station.params()
+    kp = 1.05 * zloop.critical_gain(p)
+    c = friction_decrement(p, kp, 2.0, 150.0)
+    nudged = p.with_(Kq=float(p.Kq + ulps * np.spacing(p.Kq)), beta_over_Vt=float(p.beta_over_Vt - ulps * np.spacing(p.beta_over_Vt)))
+    assert c > 0 and friction_decrement(nudged, kp, 2.0, 150.0) == c
