@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +52,8 @@ LOG_SPAN = 4.0
 #: frequency pins β/Vt (ω² ∝ β/Vt) even where the runs hold more than the linear loop can follow (a valve that
 #: saturates at a third of the amplifier's current drove a free fit to the bound, 55 times the truth).
 OSC_SPAN = 1.0
+#: The baseline's values that come from identification (the rest is given).
+_IDENTIFIED = ("Kq", "Kpot", "beta_over_Vt", "Kce", "B")
 
 
 @dataclass(frozen=True)
@@ -177,10 +179,19 @@ def choose(ds: Dataset, runs: Sequence[GapRun], *, key: str | Path | None, impli
         try:
             ident = identify(ds)
             if ident.params is not None:
-                return Baseline(ident.params.with_(sample_time=ds.given["sample_time"]), "identified",
+                return Baseline(_as_written(ident.params.with_(sample_time=ds.given["sample_time"])), "identified",
                                 "the students' identification (flow test, calibration, friction data, instability run)")
             why_not = f"students' identification gives no model: {ident.estimates['Kce'].reason}"
         except GraderError as exc:  # e.g. a friction test whose slope B is clearly negative
             why_not = f"students' identification failed: {exc}"
     base = from_runs(ds, runs, implied_kfb)
-    return base if why_not is None else Baseline(base.params, base.source, base.method, (why_not, *base.notes))
+    base = replace(base, params=_as_written(base.params))
+    return base if why_not is None else replace(base, notes=(why_not, *base.notes))
+
+
+def _as_written(p: RigParams) -> RigParams:
+    """``p`` with its identified values at :data:`~grader.precision.SIGNIFICANT_DIGITS`, as diagnosis.json writes
+    them: the search starts from the same numbers on any CPU (identification leaves last-digit differences between
+    BLAS kernels, which the search's flat valleys would amplify)."""
+    return p.with_(**{name: round_sig(float(getattr(p, name))) for name in _IDENTIFIED})
+

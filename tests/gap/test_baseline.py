@@ -9,6 +9,8 @@ from grader.gap.runs import GapRun
 from grader.model.params import Controller
 from grader.stations import load_station
 
+from .conftest import MakeDataset
+
 
 def _instability(cycles_alive: float) -> GapRun:
     """A 25 Hz oscillation after a 0.1 in step at 0.1 s that friction stops after ``cycles_alive`` cycles."""
@@ -33,3 +35,18 @@ def test_a_lasting_oscillation_is_read() -> None:
     start, why = _oscillation([_instability(1e9)], p)
     assert why == "oscillation of run instability at Kp = 60"
     assert start is not None and start.beta_over_Vt != p.beta_over_Vt and start.Kce != p.Kce
+
+
+def test_the_diagnosis_starts_from_the_baseline_as_written(make: MakeDataset) -> None:
+    """Identification leaves last-digit differences between BLAS kernels; the search starts from the values at
+    the 6 significant digits diagnosis.json writes, the same on any CPU."""
+    from grader.datasets import load
+    from grader.gap.baseline import _IDENTIFIED, choose
+    from grader.gap.runs import prepare_runs
+    from grader.precision import round_sig
+
+    ds = load(make("coulomb_friction", {"coulomb_friction": {"Fc": 2.0}}))
+    base = choose(ds, prepare_runs(ds, ds.given["sample_time"]), key=None, implied_kfb=None)
+    assert base.source == "identified"
+    values = [float(getattr(base.params, name)) for name in _IDENTIFIED]
+    assert values == [round_sig(v) for v in values] and any(v != round(v, 3) for v in values)
