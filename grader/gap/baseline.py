@@ -118,13 +118,15 @@ def fit_loop(runs: Sequence[GapRun], p0: RigParams, *, fit_kq: bool, bv_span: fl
     """Least squares of the linear loop (the compiled engine, no effect) on the runs' linear parts: ln β/Vt
     (within ``bv_span`` of p0's), ln Kce (and ln Kq), each within its span through x = span·sin(z).
 
-    The same bytes on any CPU: the start is rounded to :data:`~grader.precision.SIGNIFICANT_DIGITS` (the
-    oscillation's fit differs in its last digits between BLAS kernels), the engine uses no BLAS, and MINPACK's
-    Levenberg–Marquardt (``method="lm"``) neither. The valley is flat along Kce where a bound holds β/Vt: a
-    BLAS-based solver's last-digit differences moved the optimum there by 1e-4."""
-    p0 = p0.with_(beta_over_Vt=round_sig(p0.beta_over_Vt), Kce=round_sig(p0.Kce), Kq=round_sig(p0.Kq))
-    spans = [_linear_part(r, p0) for r in runs]
-    used = [(run, n) for run, n in zip(runs, spans) if n >= 20]
+    The same bytes under any BLAS kernel: the start is rounded to :data:`~grader.precision.SIGNIFICANT_DIGITS`
+    (the oscillation's fit and the calibration differ in their last digits between kernels), the engine uses no
+    BLAS, and MINPACK's Levenberg–Marquardt (``method="lm"``, its ``x_scale`` given: scipy 1.16 changed the
+    default) neither. The valley is flat along Kce where a bound holds β/Vt: a BLAS-based solver's last-digit
+    differences moved the optimum there by 1e-4."""
+    p0 = _as_written(p0)
+    used = [(run, n) for run in runs if (n := _linear_part(run, p0)) >= 20]
+    if not used:
+        return p0
     span = np.array([bv_span, LOG_SPAN, LOG_SPAN][:3 if fit_kq else 2])  # runs the linear model cannot follow
 
     def model(z: Array) -> RigParams:
@@ -138,9 +140,7 @@ def fit_loop(runs: Sequence[GapRun], p0: RigParams, *, fit_kq: bool, bv_span: fl
                             [run.r[:n] for run, n in used]).run()
         return np.concatenate([(y - run.y[:n]) / (run.scale * np.sqrt(n)) for y, (run, n) in zip(ys, used)])
 
-    if not used:
-        return p0
-    return model(least_squares(resid, np.zeros(span.size), method="lm").x)
+    return model(least_squares(resid, np.zeros(span.size), method="lm", x_scale="jac").x)
 
 
 def from_runs(ds: Dataset, runs: Sequence[GapRun], implied_kfb: float | None) -> Baseline:

@@ -51,6 +51,8 @@ def quintic_smooth(y: Array) -> Array:
     """The quintic Savitzky–Golay smoothing of ``y`` (at least :data:`NOISE_WINDOW` samples), as
     :func:`scipy.signal.savgol_filter` (mode ``interp``: the first and last half-windows from the quintic fitted
     to the first and last window) computes it, with the exact weights above and sums in a fixed order."""
+    if y.size < NOISE_WINDOW:
+        raise ValueError(f"quintic smoothing needs at least {NOISE_WINDOW} samples, got {y.size}")
     h = NOISE_WINDOW // 2
     out = convolve1d(y, SMOOTH, mode="nearest")
     out[:h] = np.sum(_FIT[:h] * y[:NOISE_WINDOW], axis=1)

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from grader.gap.backend import Backend, Point
+from grader.gap.lm import sumsq
 from grader.gap.objective import RunObjective
 from grader.gap.runs import NOISE_WINDOW, quintic_smooth
 
@@ -48,5 +49,5 @@ def spread(objectives: Sequence[RunObjective], point: Point, sigma: float, *, dr
     for k in range(1, draws + 1):
         for i, o in enumerate(objectives):
             d = o.residual(xs[k * n + i]) - own[i]
-            out[i] += float(np.sum(d * d)) / draws
+            out[i] += sumsq(d) / draws
     return out

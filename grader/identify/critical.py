@@ -48,7 +48,7 @@ def match_sampled_poles(p0: RigParams, *, kp: float, sigma: float, omega: float)
         return np.array([(np.log(abs(zc)) - sigma * T) / T / omega, (np.angle(zc) - omega * T) / T / omega]) * 100
 
     x0 = np.log([p0.beta_over_Vt, max(p0.Kce, 1e-9)])
-    res = least_squares(resid, x0, method="lm", xtol=1e-12, ftol=1e-12)
+    res = least_squares(resid, x0, method="lm", xtol=1e-12, ftol=1e-12, x_scale="jac")
     if np.max(np.abs(res.fun)) > 1e-3:
         raise IdentificationError("could not place the sampled loop's poles at the measured oscillation")
     return p0.with_(beta_over_Vt=float(np.exp(res.x[0])), Kce=float(np.exp(res.x[1])))

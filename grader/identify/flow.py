@@ -27,7 +27,7 @@ from grader.identify.estimate import Estimate
 
 def _fit_v(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float64]) -> OptimizeResult:
     """Least squares for ``q = |Kq·(i − i0)| + leakage``; x = (Kq, i0, leakage)."""
-    return least_squares(lambda x: np.abs(x[0] * (i - x[1])) + x[2] - q, x0, method="lm")
+    return least_squares(lambda x: np.abs(x[0] * (i - x[1])) + x[2] - q, x0, method="lm", x_scale="jac")
 
 
 #: The core ends at this share of the current where the clipped V saturates; at least CORE_MIN points each side.

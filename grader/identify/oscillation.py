@@ -166,7 +166,7 @@ class OscillationFit:
         starts = [list(guess)] if guess is not None else [
             [float(yw.mean()), 0.0, 0.0, w0, amp * np.cos(ph), amp * np.sin(ph)] for ph in (0.0, np.pi / 2, np.pi, 1.5 * np.pi)]
         for p0 in starts:
-            res = least_squares(lambda p: model(p) - yw, p0, method="lm")
+            res = least_squares(lambda p: model(p) - yw, p0, method="lm", x_scale="jac")
             if best is None or res.cost < best.cost:
                 best = res
         assert best is not None

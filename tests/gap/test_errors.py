@@ -71,12 +71,13 @@ def test_wrong_gain_message_gives_the_gain_the_data_imply(linear_dataset: Path, 
     root = tmp_path / "ds"
     shutil.copytree(linear_dataset, root)
     _manifest(_wrong_gain)(root)
-    main(["diagnose", str(root)])
+    main(["diagnose", str(root), "--out", str(tmp_path / "out")])
     assert "Kp ≈ 25" in capsys.readouterr().err
 
 
-def test_unknown_candidate_effect_is_refused(linear_dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["diagnose", str(linear_dataset), "--effects", "coulomb_fricton"]) == 2
+def test_unknown_candidate_effect_is_refused(linear_dataset: Path, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["diagnose", str(linear_dataset), "--effects", "coulomb_fricton", "--out", str(tmp_path / "out")]) == 2
     assert "unknown candidate(s) coulomb_fricton" in capsys.readouterr().err
 
 

@@ -23,7 +23,7 @@ def test_the_smoothing_weights_are_scipys_on_their_exact_grid() -> None:
 
 
 @settings(max_examples=40, deadline=None)
-@given(n=st.integers(NOISE_WINDOW + 1, 400), seed=st.integers(0, 2**31 - 1), trend=st.floats(-5.0, 5.0))
+@given(n=st.integers(NOISE_WINDOW, 400), seed=st.integers(0, 2**31 - 1), trend=st.floats(-5.0, 5.0))
 def test_quintic_smooth_is_savgol_filter_with_its_interp_edges(n: int, seed: int, trend: float) -> None:
     rng = np.random.default_rng(seed)
     t = np.linspace(0.0, 1.0, n)
@@ -58,7 +58,27 @@ def test_the_viscous_b_behind_a_loop_gain_deficit_is_found_exactly(B: float) -> 
     assert exact and found == pytest.approx(B, abs=1e-9)
 
 
-def test_a_deficit_larger_than_any_b_explains_is_not_exact() -> None:
-    runs = load_station("default").params()
+def test_quintic_smooth_refuses_fewer_samples_than_its_window() -> None:
+    with pytest.raises(ValueError, match=f"at least {NOISE_WINDOW} samples"):
+        quintic_smooth(np.zeros(NOISE_WINDOW - 1))
+
+
+@pytest.mark.parametrize("B", [0.0, 0.4])
+def test_a_deficit_larger_than_any_b_explains_gives_the_closest_b_not_exact(B: float) -> None:
+    runs = load_station("default").params().with_(B=B)
+    a2 = plant_coeffs(runs)[0]
     found, exact = _damping(runs, runs.Kq * 1e3)
-    assert not exact and found > 0
+    assert not exact and found == pytest.approx(a2 * runs.M / 2 - B, rel=1e-12)
+
+
+def test_an_existing_b_is_added_to() -> None:
+    """The runs' model already holding viscous friction B₀ = 0.3 lbf·s/in (and the g, Kce, Kq that give the true
+    rig's coefficients with it): given the true Kq, the B returned is what the true B = 0.9 adds to B₀."""
+    true = load_station("default").params().with_(B=0.9)
+    a2, a1, b0 = plant_coeffs(true)
+    M, A, B0 = true.M, true.A, 0.3
+    g = (a1 * M - B0 * a2 + B0**2 / M) / A**2
+    runs = true.with_(B=B0, beta_over_Vt=g / 4.0, Kce=(a2 - B0 / M) / g, Kq=b0 * M / (g * A))
+    assert np.allclose(plant_coeffs(runs), (a2, a1, b0), rtol=1e-12)
+    found, exact = _damping(runs, true.Kq)
+    assert exact and found == pytest.approx(0.9 - B0, abs=1e-9)
