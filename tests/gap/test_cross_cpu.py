@@ -14,6 +14,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from .conftest import MakeDataset
 
 CORE_TYPES = ("Prescott", "Nehalem", "Haswell")
@@ -34,13 +36,16 @@ def _diagnosis(core: str, dataset: Path, out: Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted(out.iterdir())}
 
 
-def test_a_diagnosis_from_the_runs_is_the_same_bytes_under_every_blas_core_type(make: MakeDataset,
-                                                                                 tmp_path: Path) -> None:
-    dataset = _without_friction_test(make("xcpu_pq", {"pressure_flow_nonlinearity": {}}),
-                                     tmp_path / "xcpu_pq")
+@pytest.mark.parametrize(("friction_test", "source"), [(False, "runs"), (True, "identified")])
+def test_a_diagnosis_is_the_same_bytes_under_every_blas_core_type(make: MakeDataset, tmp_path: Path,
+                                                                  friction_test: bool, source: str) -> None:
+    """Without a friction test the loop is fitted from the runs; with one, the students' identification
+    (the default station: volts feedback, a calibration file) gives it."""
+    made = make("xcpu_pq", {"pressure_flow_nonlinearity": {}, "valve_hysteresis": {"width": 0.6}})
+    dataset = made if friction_test else _without_friction_test(made, tmp_path / "xcpu_pq")
     written = {core: _diagnosis(core, dataset, tmp_path / core) for core in CORE_TYPES}
     first = written[CORE_TYPES[0]]
-    assert json.loads(first["diagnosis.json"])["baseline"]["source"] == "runs"
+    assert json.loads(first["diagnosis.json"])["baseline"]["source"] == source
     for core, files in written.items():
         assert files.keys() == first.keys()
         for name, data in files.items():
