@@ -15,6 +15,7 @@ from collections.abc import Sequence
 
 from grader import __version__
 from grader.errors import GraderError
+from grader.outpaths import discard_empty_created
 
 #: Modules whose ``register(subparsers)`` adds verbs, in help order.
 _COMMAND_MODULES = (
@@ -58,6 +59,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    finally:
+        discard_empty_created()  # an output folder a failed verb made and left empty
 
 
 def entry() -> None:

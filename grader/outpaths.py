@@ -3,7 +3,8 @@
 * missing parent folders are created;
 * where a file is expected, an existing folder is an error naming the path (and the reverse);
 * a file standing where a folder is needed, or a folder that cannot be written, is an error;
-* writers are atomic (:mod:`grader.exports.atomic`): no temporary file is left behind.
+* writers are atomic (:mod:`grader.exports.atomic`): no temporary file is left behind;
+* a folder a verb created and left empty because it failed is removed (:func:`discard_empty_created`).
 
 Each problem is an :class:`grader.errors.OutputPathError` with a one-line message, which the
 CLI prints as ``grader VERB: error: …`` with exit code 2.
@@ -16,6 +17,8 @@ import tempfile
 from pathlib import Path
 
 from grader.errors import OutputPathError
+
+_CREATED: list[Path] = []  # folders created by this process, deepest first per call
 
 
 def _blocking_file(path: Path) -> Path | None:
@@ -31,8 +34,10 @@ def _make_folder(folder: Path, target: Path) -> None:
     blocker = _blocking_file(folder / "x")
     if blocker is not None:
         raise OutputPathError(f"{target}: {blocker} is a file, not a folder; choose another output path")
+    missing = [p for p in (folder, *folder.parents) if not p.exists()]
     try:
         folder.mkdir(parents=True, exist_ok=True)
+        _CREATED.extend(missing)
         fd, probe = tempfile.mkstemp(prefix=".grader-probe-", dir=folder)
         os.close(fd)
         os.unlink(probe)
@@ -82,3 +87,12 @@ def write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 def write_text(path: str | os.PathLike[str], text: str) -> Path:
     """Write UTF-8 ``text`` to ``path`` atomically."""
     return write_bytes(path, text.encode("utf-8"))
+
+
+def discard_empty_created() -> None:
+    """Remove the folders this process created that are still empty (a verb that failed before writing)."""
+    while _CREATED:
+        try:
+            _CREATED.pop(0).rmdir()  # only an empty folder goes; its created parents follow
+        except OSError:
+            pass

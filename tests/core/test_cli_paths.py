@@ -96,6 +96,18 @@ def test_missing_parent_folders_are_created(argv: Callable[[Path], list[str]], m
     assert (out / made).is_file() and sorted(p.name for p in out.iterdir()) == [made]
 
 
+@pytest.mark.parametrize("verb", ["grade", "diagnose", "simulate", "survey", "exam"])
+def test_a_verb_that_fails_on_its_input_leaves_no_empty_output_folder(verb: str, tmp_path: Path,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """The output folder is made before any work (to refuse a bad path at once); when the input then fails,
+    the folders made for it go again, so a newcomer's failed first try leaves no empty ``diagnosis/``."""
+    (tmp_path / "kept").mkdir()
+    for out in (tmp_path / "new" / "deeper", tmp_path / "kept"):
+        assert main(FOLDER_VERBS[verb](tmp_path, str(out))) == 2
+    assert "error" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists() and (tmp_path / "kept").is_dir()
+
+
 def test_gradescope_results_folder_is_created(tmp_path: Path) -> None:
     (tmp_path / "sub").mkdir()
     results = tmp_path / "results" / "results.json"
