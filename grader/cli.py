@@ -47,20 +47,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "handler", None):
         parser.print_help()
         return 2
+    code = 2
     try:
-        return int(args.handler(args))
+        code = int(args.handler(args))
     except GraderError as exc:
         print(f"grader {args.verb}: error: {exc}", file=sys.stderr)
-        return 2
     except OSError as exc:  # a file system failure a check could not foresee (disk full, lost mount …)
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"grader {args.verb}: error: {where}{exc.strerror or exc}", file=sys.stderr)
-        return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
-        return 130
+        code = 130
     finally:
-        discard_empty_created()  # an output folder a failed verb made and left empty
+        discard_empty_created(failed=code != 0)  # an output folder a failed verb made and left empty goes
+    return code
 
 
 def entry() -> None:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from grader.errors import OutputPathError
 
-_CREATED: list[Path] = []  # folders created by this process, deepest first per call
+_CREATED: list[Path] = []  # folders created by this process since the last discard
 
 
 def _blocking_file(path: Path) -> Path | None:
@@ -89,10 +89,13 @@ def write_text(path: str | os.PathLike[str], text: str) -> Path:
     return write_bytes(path, text.encode("utf-8"))
 
 
-def discard_empty_created() -> None:
-    """Remove the folders this process created that are still empty (a verb that failed before writing)."""
-    while _CREATED:
+def discard_empty_created(*, failed: bool) -> None:
+    """Forget the folders this process created; after a verb that ``failed``, first remove those still empty
+    (deepest first, so a created parent left empty by its removed child goes too)."""
+    created = sorted(set(_CREATED), key=lambda p: len(p.parts), reverse=True)
+    _CREATED.clear()
+    for folder in created if failed else ():
         try:
-            _CREATED.pop(0).rmdir()  # only an empty folder goes; its created parents follow
+            folder.rmdir()  # only an empty folder goes
         except OSError:
             pass

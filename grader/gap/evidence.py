@@ -132,7 +132,8 @@ def _damping(runs: RigParams, kq: float) -> tuple[float, bool]:
     plant coefficients (:func:`~grader.model.linear.plant_coeffs`) are those of ``runs``, and whether some B does
     so exactly. b0 fixes g = 4β/Vt, a2 then Kce, and a1 leaves a quadratic in B, B² − a2·M·B + M·(a1·M − g·A²) = 0,
     whose smaller root is right while B/M is less of the damping than g·Kce. Beyond the largest deficit any B
-    explains (no real root), the B that comes closest in the stiffness a1 (the other two exact), a2·M/2, not exact. In closed form: the same bytes on any CPU."""
+    explains (no real root), the B that comes closest in the stiffness a1 (the other two exact), a2·M/2, not
+    exact. In closed form: the same bytes on any CPU."""
     a2, a1, b0 = plant_coeffs(runs)
     g = b0 * runs.M / (kq * runs.A)
     disc = (a2 * runs.M) ** 2 - 4.0 * runs.M * (a1 * runs.M - g * runs.A**2)

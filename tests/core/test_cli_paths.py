@@ -108,6 +108,21 @@ def test_a_verb_that_fails_on_its_input_leaves_no_empty_output_folder(verb: str,
     assert not (tmp_path / "new").exists() and (tmp_path / "kept").is_dir()
 
 
+@pytest.mark.parametrize("failed", [True, False])
+def test_created_folders_left_empty_go_only_after_a_failure(tmp_path: Path, failed: bool) -> None:
+    """Folders made by separate calls, a parent first and its child later: after a failure both go (deepest
+    first), a folder with a file stays; after a success nothing goes."""
+    from grader.outpaths import discard_empty_created, output_folder, write_text
+
+    output_folder(tmp_path / "a")
+    output_folder(tmp_path / "a" / "b" / "c")
+    write_text(tmp_path / "kept" / "x.txt", "x")
+    discard_empty_created(failed=failed)
+    assert (tmp_path / "a").exists() != failed and (tmp_path / "kept" / "x.txt").is_file()
+    discard_empty_created(failed=True)  # forgotten: a later failure removes nothing made before
+    assert (tmp_path / "a").exists() != failed
+
+
 def test_gradescope_results_folder_is_created(tmp_path: Path) -> None:
     (tmp_path / "sub").mkdir()
     results = tmp_path / "results" / "results.json"
