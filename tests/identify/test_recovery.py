@@ -87,6 +87,43 @@ def test_flow_fit_of_a_valve_saturating_next_to_its_null(seed: int) -> None:
     assert "every reading" in fit.Kq_.method and fit.linear_mask_.sum() <= 5
 
 
+def _clipped_flow(rng: np.random.Generator, kq: float, limit: float, null: float, sd: float) -> tuple[np.ndarray, np.ndarray]:
+    """A bypass flow test written here, independently of the simulator: amplifier volts and readings [in³/s] of
+    a valve clipped at ``limit`` [mA] with its null at ``null`` [mA], 0.11 in³/s of leakage, noise ``sd``."""
+    v = np.arange(-10, 10.01, 0.5)
+    q = np.abs(kq * np.clip(5.0 * v - null, -limit, limit)) + 0.11 + rng.normal(0, sd, v.size)
+    return v, np.abs(q)
+
+
+def test_flow_fit_interval_covers_kq_at_its_stated_rate() -> None:
+    """Over 300 flow tests of valves clipping anywhere between 30 and 48 mA, off-null by up to 1 mA, at the
+    default and twice the default meter noise, Kq's 95 % interval covers the truth 92–98 % of the time and the
+    estimates are not biased by more than a fifth of a standard error. Before the region's growth stopped at
+    the clipped V's kink, a reading just past the clip entered the fit: coverage was 88 % and the bias −0.45 se."""
+    rng = np.random.default_rng(7)
+    z, covered = [], []
+    for _ in range(300):
+        kq = rng.uniform(0.02, 0.06)
+        v, q = _clipped_flow(rng, kq, rng.uniform(30.0, 48.0), rng.uniform(-1.0, 1.0), rng.choice([0.006, 0.012]))
+        fit = FlowGainFit(Kamp=5.0).fit(v, q)
+        z.append((fit.Kq_.value - kq) / fit.Kq_.se)
+        covered.append(fit.Kq_.interval[0] < kq < fit.Kq_.interval[1])
+    assert 0.92 <= np.mean(covered) <= 0.98
+    assert abs(np.mean(z)) < 0.2
+
+
+def test_flow_fit_keeps_a_single_noisy_reading_and_the_line_beyond_it() -> None:
+    """One reading 5 % low at +4 V (20 mA) is noise, not the start of saturation: the readings beyond it, up to
+    the clip at 40 mA, stay in the fit, and none past the clip enters it."""
+    v = np.arange(-10, 10.01, 0.5)
+    i = 5.0 * v
+    q = np.abs(0.04 * np.clip(i, -40, 40)) + 0.11
+    q[np.flatnonzero(v == 6.0)] *= 0.95
+    fit = FlowGainFit(Kamp=5.0).fit(v, q)
+    assert fit.linear_mask_[(v > 6.0) & (np.abs(i) < 40)].all()
+    assert not fit.linear_mask_[np.abs(i) > 40].any()
+
+
 def test_friction_fit_says_whether_B_is_distinguishable() -> None:
     rng = np.random.default_rng(0)
     v = np.linspace(0.5, 6, 12)
