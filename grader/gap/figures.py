@@ -3,7 +3,8 @@
 A figure job is a :class:`RunFigure` or a :class:`CandidatesFigure`: arrays, numbers and the
 words to print, nothing else. Drawing one needs numpy and matplotlib only (:mod:`grader.gap.plots`),
 so helpers forked before the diagnosis imports anything heavy spend the time it takes the
-diagnosis to import scipy importing matplotlib on the other core, and then wait. This module
+diagnosis to import scipy importing matplotlib on the other core, at a lower priority (:data:`NICE`), and
+then wait. This module
 imports nothing but the standard library and numpy's typing at load.
 """
 
@@ -21,6 +22,9 @@ from typing import Any, Union
 
 #: Most helpers started; one per core (this process only waits for them while they draw).
 MAX_HELPERS = 3
+#: Niceness the helpers add to their own: their import of matplotlib yields the cores to the diagnosis, which
+#: needs them first, and they draw when it waits.
+NICE = 10
 
 
 @dataclass(frozen=True)
@@ -75,6 +79,8 @@ _NEXT: Any = None  # in a helper: its PlotHelpers.next_figure
 def _warm(next_figure: Any) -> None:
     global _NEXT
     _NEXT = next_figure
+    if hasattr(os, "nice"):
+        os.nice(NICE)  # the diagnosis, importing scipy meanwhile, comes first; the figures come after it
     importlib.import_module("grader.gap.plots")  # matplotlib, imported while the parent still works
     gc.freeze()  # what is imported stays: later collections skip it
     gc.enable()  # figures leave cyclic garbage (the parent may have paused the collector)
