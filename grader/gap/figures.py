@@ -3,9 +3,9 @@
 A figure job is a :class:`RunFigure` or a :class:`CandidatesFigure`: arrays, numbers and the
 words to print, nothing else. Drawing one needs numpy and matplotlib only (:mod:`grader.gap.plots`),
 so helpers forked before the diagnosis imports anything heavy spend the time it takes the
-diagnosis to import scipy importing matplotlib on the other core, at a lower priority (:data:`NICE`), and
-then wait. This module
-imports nothing but the standard library and numpy's typing at load.
+diagnosis to import scipy importing matplotlib on the other core, at a lower priority
+(:data:`NICE`), and then wait. This module imports nothing but the standard library and numpy's
+typing at load.
 """
 
 from __future__ import annotations
