@@ -101,13 +101,18 @@ def _significant(cand: SchemaCandidate, effect: str) -> bool:
 
 
 def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, others: Sequence[Candidate],
-            floor_nrmse: Array, before: CrossValidation,
-            executor: Executor | None) -> tuple[FitState, SchemaCandidate, Scored] | None:
+            floor_nrmse: Array, before: CrossValidation, executor: Executor | None,
+            first_scored: Scored) -> tuple[FitState, SchemaCandidate, Scored] | None:
     """The best second effect on top of ``first`` if it explains clearly more than ``first`` alone (beyond the
     floor ``first`` leaves, by :data:`SECOND_GAIN`), else None; an addition whose parameter's 95 % interval
-    reaches "no effect" is no second effect (it only moved the first effect's optimum)."""
+    reaches "no effect" is no second effect (it only moved the first effect's optimum). ``first`` alone is
+    refitted from the pair search's start; where its score from the first search, ``first_scored``, is better,
+    that is the one to beat (a refit whose folds fell into worse optima let a pair through that predicted the
+    left-out runs worse than the verdict alone)."""
     found = second_effect(objs, base.params, first, others, executor=executor)
     scored = _scored(found)
+    if scores([first_scored])[0] < scores([scored[-1]])[0]:
+        scored[-1] = first_scored
     sc = scores(scored)
     runs = [o.run for o in objs]
     built = [build.candidate(st, cv, before, float(s), runs, found.lengths, base)
@@ -137,7 +142,7 @@ def _pair_beyond_none(objs: Sequence[RunObjective], base: baseline_mod.Baseline,
     first = found.states[k]
     floor = np.sqrt(noise_nrmse**2 + spread(objs, first.candidate.point(base.params, first.theta), sigma))
     others = [c for c in candidates if c.effect not in (NONE, names[k], *NOT_FROM_RUNS)]
-    extra = _second(objs, base, first, others, floor, before, executor)
+    extra = _second(objs, base, first, others, floor, before, executor, _scored(found)[k])
     if extra is None:
         return rk, None
     none = _scored(found)[names.index(NONE)]
@@ -188,7 +193,7 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
             floor = np.sqrt(noise_nrmse**2 + spread(objs, first.candidate.point(base.params, first.theta), sigma))
             if second or _needs_second(first, found.lengths, floor):
                 others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict], *NOT_FROM_RUNS)]
-                extra = _second(objs, base, first, others, floor, before, executor)
+                extra = _second(objs, base, first, others, floor, before, executor, _scored(found)[rk.verdict])
         elif second is not False and _needs_second(found.states[rk.verdict], found.lengths, np.sqrt(NONE_GAP) * noise_nrmse):
             rk, extra = _pair_beyond_none(objs, base, found, rk, candidates, noise_nrmse, sigma, before, executor)
             alone = extra is None
