@@ -15,7 +15,8 @@
   of :data:`DEFICIT_Z` standard errors or more (the flow test's, the runs' and, with volts feedback,
   the calibration's Kpot's combined) names viscous friction, as the verdict or beside the runs' effect,
   with the B that gives the runs' closed loop at the flow test's Kq (and its interval from the
-  deficit's). A deficit that no B explains names nothing.
+  deficit's, reaching a second B that gives the same loop where that is a realistic rig:
+  :func:`viscous_b`). A deficit that no B explains names nothing.
 * **ADC** (:mod:`grader.gap.quantization`): named when its step matters.
 """
 
@@ -46,6 +47,10 @@ DEFICIT_Z = 2.0
 #: Beside an effect the runs name, whose fit may bias Kq by a per cent, the deficit must reach this many.
 DEFICIT_Z_BESIDE = 3.0
 Z95 = 1.959964
+#: Realistic rigs (docs/reference/rig-space.md): Kce [in³/s/psi] at least this, B [lbf·s/in] at most the top of
+#: viscous friction's realistic range.
+KCE_REALISTIC = 1e-4
+B_REALISTIC = EFFECTS["viscous_friction"].params[0].typical[1]
 
 
 @dataclass(frozen=True)
@@ -134,11 +139,35 @@ def _damping(runs: RigParams, kq: float) -> tuple[float, bool]:
     whose smaller root is right while B/M is less of the damping than g·Kce. Beyond the largest deficit any B
     explains (no real root), the B that comes closest in the stiffness a1 (the other two exact), a2·M/2, not
     exact. In closed form: the same bytes on any CPU."""
+    small, _, exact = _roots(runs, kq)
+    return small, exact
+
+
+def _roots(runs: RigParams, kq: float) -> tuple[float, tuple[float, float], bool]:
+    """:func:`_damping`'s smaller root, the larger root with the Kce [in³/s/psi] it implies (right where the
+    mechanical damping B/M exceeds the hydraulic g·Kce), both less ``runs``' own B, and whether they are real."""
     a2, a1, b0 = plant_coeffs(runs)
     g = b0 * runs.M / (kq * runs.A)
     disc = (a2 * runs.M) ** 2 - 4.0 * runs.M * (a1 * runs.M - g * runs.A**2)
-    total = 0.5 * (a2 * runs.M - math.sqrt(max(disc, 0.0)))
-    return max(total - runs.B, 0.0), bool(disc >= 0.0 and total >= runs.B)
+    half = 0.5 * math.sqrt(max(disc, 0.0))
+    small, large = 0.5 * a2 * runs.M - half, 0.5 * a2 * runs.M + half
+    return max(small - runs.B, 0.0), (large - runs.B, (a2 - large / runs.M) / g), bool(disc >= 0.0 and small >= runs.B)
+
+
+def viscous_b(runs: RigParams, d: float, sigma: float) -> tuple[float, float, float, bool]:
+    """B [lbf·s/in] behind a loop-gain deficit ``d`` = ln(flow test Kq / runs' Kq) of standard error ``sigma``:
+    (B, lo, hi, whether a B within the deficit's 95 % interval explains it exactly). B and the interval come from
+    the smaller root. Where the mechanical damping B/M can exceed the hydraulic g·Kce, the larger root gives the
+    same closed loop, and the data cannot choose: for a deficit clearly above 0, the interval then reaches up to
+    the larger root of the interval's lower end (at most :data:`B_REALISTIC`), if the larger root of its upper
+    end (or where the roots meet, beyond the largest deficit any B explains) is a realistic rig: B at most
+    :data:`B_REALISTIC`, Kce at least :data:`KCE_REALISTIC`."""
+    ends = (d, d - Z95 * sigma, d + Z95 * sigma)
+    fits = [_roots(runs, runs.Kq * float(np.exp(x))) if x > 0 else (0.0, (math.inf, 0.0), True) for x in ends]
+    (b, _, _), (lo, (top, _), explained), (hi, nearest, _) = fits  # nearest: the larger root closest to the smaller
+    if explained and ends[1] > 0 and nearest[0] <= B_REALISTIC and nearest[1] >= KCE_REALISTIC:
+        hi = max(hi, min(top, B_REALISTIC))
+    return b, lo, hi, explained and lo > 0
 
 
 def _log_se(v: Value, quantile: float) -> float:
@@ -179,14 +208,12 @@ def loop_gain(ds: Dataset, cand: Candidate, base: RigParams, quantile: float) ->
     d = float(np.log(flow.value / runs.Kq))
     sigma = float(np.sqrt((flow.se / flow.value) ** 2 + _log_se(runs_kq, quantile) ** 2 + _kpot_se(ds) ** 2))
     z = d / sigma if sigma > 0 else 0.0
-    fits = [_damping(runs, runs.Kq * float(np.exp(x))) if x > 0 else (0.0, True)
-            for x in (d, d - Z95 * sigma, d + Z95 * sigma)]
-    b = [f[0] for f in fits]
-    names = z >= DEFICIT_Z and fits[1][1] and b[1] > 0  # a B within the deficit's interval must explain it exactly
+    b, lo, hi, explained = viscous_b(runs, d, sigma)
+    names = z >= DEFICIT_Z and explained  # a B within the deficit's interval must explain it exactly
     # (beyond the largest deficit any B explains, B is the closest, at the interval's top)
     return LoopGainInfo(flow_test_Kq=flow_kq, runs_Kq=runs_kq, candidate=cand.effect,
                         deficit=build.r6(1.0 - float(np.exp(-d))), deficit_z=build.r6(z),
-                        viscous_B=build.value(b[0], "lbf*s/in", (b[1], b[2])), names_viscous=names)
+                        viscous_B=build.value(b, "lbf*s/in", (lo, hi)), names_viscous=names)
 
 
 def viscous_unexcluded(verdict: Verdict, fr: Friction | None, lg: LoopGainInfo | None) -> Verdict:
