@@ -151,7 +151,8 @@ def _roots(runs: RigParams, kq: float) -> tuple[float, tuple[float, float], bool
     disc = (a2 * runs.M) ** 2 - 4.0 * runs.M * (a1 * runs.M - g * runs.A**2)
     half = 0.5 * math.sqrt(max(disc, 0.0))
     small, large = 0.5 * a2 * runs.M - half, 0.5 * a2 * runs.M + half
-    return max(small - runs.B, 0.0), (large - runs.B, (a2 - large / runs.M) / g), bool(disc >= 0.0 and small >= runs.B)
+    exact = bool(disc >= 0.0 and small >= runs.B)
+    return max(small - runs.B, 0.0), (large - runs.B, (a2 - large / runs.M) / g), exact
 
 
 def viscous_b(runs: RigParams, d: float, sigma: float) -> tuple[float, float, float, bool]:
