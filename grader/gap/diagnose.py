@@ -142,10 +142,11 @@ def _pair_beyond_none(objs: Sequence[RunObjective], base: baseline_mod.Baseline,
     first = found.states[k]
     floor = np.sqrt(noise_nrmse**2 + spread(objs, first.candidate.point(base.params, first.theta), sigma))
     others = [c for c in candidates if c.effect not in (NONE, names[k], *NOT_FROM_RUNS)]
-    extra = _second(objs, base, first, others, floor, before, executor, _scored(found)[k])
+    scored = _scored(found)
+    extra = _second(objs, base, first, others, floor, before, executor, scored[k])
     if extra is None:
         return rk, None
-    none = _scored(found)[names.index(NONE)]
+    none = scored[names.index(NONE)]
     if decide([none, extra[2]], noise_nrmse)[0] != 1:
         return rk, None
     order = [k, *(i for i in rk.order if i != k)]
@@ -182,7 +183,8 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
     with worker(parallel) as executor:
         found = search(objs, base.params, candidates, executor=executor)
         names = [s.candidate.effect for s in found.states]
-        rk = rank(_scored(found), noise_nrmse)
+        scored = _scored(found)
+        rk = rank(scored, noise_nrmse)
         before = found.cvs[names.index(NONE)]
         built = [build.candidate(st, cv, before, float(sc), runs, found.lengths, base)
                  for st, cv, sc in zip(found.states, found.cvs, rk.scores)]
@@ -193,7 +195,7 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
             floor = np.sqrt(noise_nrmse**2 + spread(objs, first.candidate.point(base.params, first.theta), sigma))
             if second or _needs_second(first, found.lengths, floor):
                 others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict], *NOT_FROM_RUNS)]
-                extra = _second(objs, base, first, others, floor, before, executor, _scored(found)[rk.verdict])
+                extra = _second(objs, base, first, others, floor, before, executor, scored[rk.verdict])
         elif second is not False and _needs_second(found.states[rk.verdict], found.lengths, np.sqrt(NONE_GAP) * noise_nrmse):
             rk, extra = _pair_beyond_none(objs, base, found, rk, candidates, noise_nrmse, sigma, before, executor)
             alone = extra is None

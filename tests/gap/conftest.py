@@ -9,13 +9,22 @@ import numpy as np
 import pytest
 
 from grader.model.effects import EffectSet
-from grader.model.params import Controller
+from grader.model.linear import plant_coeffs
+from grader.model.params import Controller, RigParams
 from grader.model.sampled import discrete_critical_gain
 from grader.stations import Station
 from grader.synth import RunPlan, make_dataset
 
 SIGMA = 0.0004  # [in], the default station's position noise
 MakeDataset = Callable[..., Path]
+
+
+def seen_without_b(rig: RigParams) -> RigParams:
+    """The frictionless loop with ``rig``'s three plant coefficients: what runs fitted without B see. With B = 0,
+    X/I = b0 / (s (s² + a2 s + a1)) has a1 = g·A²/M, a2 = g·Kce, b0 = g·Kq·A/M (g = 4β/Vt)."""
+    a2, a1, b0 = plant_coeffs(rig)
+    g = a1 * rig.M / rig.A**2
+    return rig.with_(B=0.0, beta_over_Vt=g / 4, Kce=a2 / g, Kq=b0 * rig.M / (g * rig.A))
 
 
 def short_plan(station: Station) -> list[RunPlan]:

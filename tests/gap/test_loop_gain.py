@@ -14,10 +14,9 @@ from hypothesis import strategies as st
 from grader.gap.diagnose import analyse
 from grader.gap.evidence import DEFICIT_Z, DEFICIT_Z_BESIDE, Z95, _damping, viscous_b
 from grader.gap.summary import summary
-from grader.model.linear import plant_coeffs
 from grader.stations import load_station
 
-from .conftest import FEW, MakeDataset
+from .conftest import FEW, MakeDataset, seen_without_b
 
 
 @settings(max_examples=25, deadline=None)
@@ -28,9 +27,7 @@ def test_the_damping_found_is_the_rigs_own(B: float, kce_scale: float) -> None:
     while viscous friction is less of the damping than the leakage: then B is the smaller of the two that fit)."""
     rig = load_station("default").params()
     rig = rig.with_(B=B, Kce=rig.Kce * kce_scale)
-    a2, a1, b0 = plant_coeffs(rig)
-    g = a1 * rig.M / rig.A**2  # X/I = b0 / (s (s² + a2 s + a1)) with B = 0: a1 = g A²/M, a2 = g Kce, b0 = g Kq A/M
-    seen = rig.with_(B=0.0, beta_over_Vt=g / 4, Kce=a2 / g, Kq=b0 * rig.M / (g * rig.A))
+    seen = seen_without_b(rig)
     assert seen.Kq < rig.Kq
     found, exact = _damping(seen, rig.Kq)
     assert exact and found == pytest.approx(B, rel=1e-4)
@@ -84,20 +81,13 @@ def test_viscous_friction_beside_an_effect_the_runs_name(make: MakeDataset, tmp_
     assert set(d.verdict.shares) == {"coulomb_friction", "viscous_friction"}
 
 
-def _seen_without_b(rig):  # noqa: ANN001, ANN202 - RigParams
-    """The frictionless loop with ``rig``'s three plant coefficients (what the runs fit without B)."""
-    a2, a1, b0 = plant_coeffs(rig)
-    g = a1 * rig.M / rig.A**2
-    return rig.with_(B=0.0, beta_over_Vt=g / 4, Kce=a2 / g, Kq=b0 * rig.M / (g * rig.A))
-
-
 def test_b_interval_reaches_the_larger_root_where_mechanical_damping_dominates() -> None:
     """B = 1.2 lbf·s/in on a rig with little leakage (Kce = 1.2e-4): B/M = 16 1/s exceeds g·Kce = 11 1/s, so the
     true B is the larger root of the quadratic, and the smaller one (the reported value) is another rig with the
     same closed loop. The interval must hold the truth."""
     rig = load_station("default").params().with_(B=1.2, Kce=1.2e-4)
     assert rig.B / rig.M > 4 * rig.beta_over_Vt * rig.Kce
-    seen = _seen_without_b(rig)
+    seen = seen_without_b(rig)
     d = math.log(rig.Kq / seen.Kq)
     b, lo, hi, explained = viscous_b(seen, d, 0.1 * d)
     assert explained and b < 1.0 and lo <= 1.2 <= hi
@@ -107,7 +97,7 @@ def test_b_interval_keeps_to_the_smaller_root_where_the_larger_is_no_realistic_r
     """The default station's leakage (Kce = 7.2e-4) with B = 0.5: the larger root is a B of several lbf·s/in with
     almost no leakage, no realistic rig; the interval is the smaller roots' and holds the truth."""
     rig = load_station("default").params().with_(B=0.5)
-    seen = _seen_without_b(rig)
+    seen = seen_without_b(rig)
     d = math.log(rig.Kq / seen.Kq)
     b, lo, hi, explained = viscous_b(seen, d, 0.1 * d)
     assert explained and b == pytest.approx(0.5, rel=1e-6)

@@ -14,6 +14,8 @@ from grader.gap.runs import _DENOMINATOR, _FIT, NOISE_ORDER, NOISE_WINDOW, SMOOT
 from grader.model.linear import plant_coeffs
 from grader.stations import load_station
 
+from .conftest import seen_without_b
+
 
 def test_the_smoothing_weights_are_scipys_on_their_exact_grid() -> None:
     assert np.array_equal(_FIT, np.round(_FIT * _DENOMINATOR) / _DENOMINATOR)  # whole multiples of 1/9724
@@ -50,10 +52,8 @@ def test_the_viscous_b_behind_a_loop_gain_deficit_is_found_exactly(B: float) -> 
     """The runs see a rig with viscous friction B as a frictionless loop with another g, Kce and Kq; given the
     true Kq, the closed form returns B."""
     true = load_station("default").params().with_(B=B)
-    a2, a1, b0 = plant_coeffs(true)
-    g = a1 * true.M / true.A**2  # the frictionless loop with the same coefficients
-    runs = true.with_(B=0.0, beta_over_Vt=g / 4.0, Kce=a2 / g, Kq=b0 * true.M / (g * true.A))
-    assert np.allclose(plant_coeffs(runs), (a2, a1, b0), rtol=1e-12)
+    runs = seen_without_b(true)
+    assert np.allclose(plant_coeffs(runs), plant_coeffs(true), rtol=1e-12)
     found, exact = _damping(runs, true.Kq)
     assert exact and found == pytest.approx(B, abs=1e-9)
 
