@@ -15,8 +15,8 @@ Strict scoring: a single-effect verdict is right only when it names the withheld
 and its second effect are the two withheld effects (in any order). "Cannot separate"
 statements count as misses. Reported (see :mod:`grader.gap.bench_report`): strict top-1
 and top-2, the confusion matrix, false positives on ``none``, the two-effect both-named rate,
-the median held-out shrink, the 95 % intervals' coverage of the truth per effect, seconds per
-diagnosis.
+the median held-out shrink (of the model with every effect named from the runs: with a second
+effect, the pair's), the 95 % intervals' coverage of the truth per effect, seconds per diagnosis.
 """
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ class Case:
     second: str | None
     runner_up: str | None
     ties: tuple[str, ...]
-    shrink: float
+    shrink: float  # held-out shrink of the model with the effects named from the runs (the pair's, with two)
     seconds: float
     params: dict[str, tuple[float, float, float, float]]  # effect:param -> (truth, fitted, lo, hi)
 

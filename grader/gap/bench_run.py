@@ -27,6 +27,7 @@ import numpy as np
 from grader.gap.bench import ERROR, BenchConfig, BenchResult, Case, coverage, effect_params, make_case_dataset, plan, \
     random_station, step_demand
 from grader.gap.candidates import NONE
+from grader.gap.summary import combination
 from grader.model.effects import EffectSet
 from grader.stations import Station, load_station
 
@@ -87,8 +88,9 @@ def run_task(task: Task, parallel: bool = True) -> Case:
         print(f"{task.folder.name}: the diagnosis failed: {type(exc).__name__}: {exc}", file=sys.stderr, flush=True)
         return Case(task.label, task.strength, ERROR, None, None, (), 0.0, time.perf_counter() - t0, {})
     seconds = time.perf_counter() - t0
+    named = combination(d) or d.candidates[0]  # the model with every effect named from the runs, as the summary says
     return Case(task.label, task.strength, d.verdict.effect, d.verdict.second_effect, d.verdict.runner_up,
-                tuple(d.verdict.indistinguishable_from), d.candidates[0].shrink, seconds, coverage(d, task.truth))
+                tuple(d.verdict.indistinguishable_from), named.shrink, seconds, coverage(d, task.truth))
 
 
 def _one_core(task: Task) -> Case:

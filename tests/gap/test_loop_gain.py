@@ -55,6 +55,13 @@ def test_viscous_friction_is_named_from_the_loop_gain_and_its_b_covers_the_truth
     text = summary(d)
     assert text.count("below the flow test's Kq") == 1 and "beats the runner-up" not in text
     assert "How far it shrinks: not measurable from the runs" in text
+    # the default station's leakage: the larger root is no realistic rig, the interval is the smaller roots'
+    assert d.loop_gain.viscous_B_larger_root is None and "interval is wide" not in text
+    # where it is one, the summary says why the interval reaches it
+    alt = d.loop_gain.viscous_B.model_copy(update={"value": 1.31, "interval": None})
+    wide = d.model_copy(update={"loop_gain": d.loop_gain.model_copy(update={"viscous_B_larger_root": alt})})
+    assert "a rig with more viscous friction and less leakage, B = 1.31 lbf·s/in, gives the same closed loop" \
+        in summary(wide)
 
 
 def test_no_effect_names_nothing_from_the_loop_gain(make: MakeDataset, tmp_path: Path) -> None:
@@ -89,8 +96,9 @@ def test_b_interval_reaches_the_larger_root_where_mechanical_damping_dominates()
     assert rig.B / rig.M > 4 * rig.beta_over_Vt * rig.Kce
     seen = seen_without_b(rig)
     d = math.log(rig.Kq / seen.Kq)
-    b, lo, hi, explained = viscous_b(seen, d, 0.1 * d)
+    b, lo, hi, explained, larger = viscous_b(seen, d, 0.1 * d)
     assert explained and b < 1.0 and lo <= 1.2 <= hi
+    assert larger == pytest.approx(1.2, rel=1e-6)  # the deficit's own larger root is the true rig
 
 
 def test_b_interval_keeps_to_the_smaller_root_where_the_larger_is_no_realistic_rig() -> None:
@@ -99,7 +107,25 @@ def test_b_interval_keeps_to_the_smaller_root_where_the_larger_is_no_realistic_r
     rig = load_station("default").params().with_(B=0.5)
     seen = seen_without_b(rig)
     d = math.log(rig.Kq / seen.Kq)
-    b, lo, hi, explained = viscous_b(seen, d, 0.1 * d)
-    assert explained and b == pytest.approx(0.5, rel=1e-6)
+    b, lo, hi, explained, larger = viscous_b(seen, d, 0.1 * d)
+    assert explained and b == pytest.approx(0.5, rel=1e-6) and larger is None
     assert hi == pytest.approx(_damping(seen, seen.Kq * math.exp(d + Z95 * 0.1 * d))[0], rel=1e-12)
     assert lo <= 0.5 <= hi < 1.0  # not widened to the larger root
+
+
+@pytest.mark.parametrize(("z", "named"), [(2.3, False), (2.62, True), (3.5, True)])
+def test_viscous_friction_beside_a_named_effect_needs_the_stricter_deficit(z: float, named: bool) -> None:
+    """Beside an effect the runs name, the deficit must reach DEFICIT_Z_BESIDE (2.5) standard errors: benchmark
+    seed 500's case 65 (a backlash with B = 1.37 lbf·s/in) reaches 2.62, while no rig of 236 with one effect the
+    runs name passed 2.32."""
+    from grader.gap.evidence import viscous_from_loop_gain
+    from grader.gap.schema import LoopGainInfo, Value, Verdict
+
+    verdict = Verdict(effect="valve_hysteresis", margin=1.0, runner_up="none", confidence=1.0,
+                      indistinguishable_from=[], shares={"valve_hysteresis": 1.0}, explanation="valve_hysteresis")
+    kq = Value(value=0.04, unit="in**3/s/mA", interval=(0.039, 0.041))
+    lg = LoopGainInfo(flow_test_Kq=kq, runs_Kq=kq, candidate="valve_hysteresis", deficit=0.03, deficit_z=z,
+                      viscous_B=Value(value=0.9, unit="lbf*s/in", interval=(0.2, 1.5)), names_viscous=True)
+    out = viscous_from_loop_gain(verdict, lg)
+    assert (out.second_effect == "viscous_friction") is named
+    assert set(out.shares) == ({"valve_hysteresis", "viscous_friction"} if named else {"valve_hysteresis"})
