@@ -58,7 +58,8 @@ def _headline(singles: list[Case], pairs: list[Case], cli: list[float], cores: i
         f"({len(nones)} datasets)",
         f"two effects, both named: {_pct(_mean([c.right for c in pairs]))}   "
         f"verdict one of the two: {_pct(first_right)} ({len(pairs)} datasets)",
-        f"median held-out shrink (verdicts naming an effect): {_pct(float(np.median(shrink)) if shrink else float('nan'))} "
+        f"median held-out shrink (verdicts naming an effect; the pair's where two are named): "
+        f"{_pct(float(np.median(shrink)) if shrink else float('nan'))} "
         f"({len(shrink)} verdicts)",
         (f"seconds per diagnosis ({cores} core{'s' if cores > 1 else ''}, no report): median {np.median(secs):.2f}, "
          f"90th percentile {np.percentile(secs, 90):.2f}, max {secs.max():.2f}") if secs.size else "seconds per diagnosis: –",

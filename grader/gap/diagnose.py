@@ -171,8 +171,8 @@ def _verdict(rk: Ranking, names: list[str]) -> Verdict:
 
 
 def _needs_second(state: FitState, lengths: Sequence[int], floor_nrmse: Array) -> bool:
-    """Whether the verdict's all-runs fit leaves a residual clearly above the floor (mean square over
-    RESIDUAL_RATIO times the floor's): then a pair of effects is searched."""
+    """Whether the verdict's all-runs fit leaves a residual above the floor (mean square over RESIDUAL_RATIO
+    times the floor's): then a pair of effects is searched."""
     return float(np.mean(_fit_nrmse(state, lengths) ** 2)) > RESIDUAL_RATIO * float(np.mean(floor_nrmse**2))
 
 
@@ -243,7 +243,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
             second: bool | None = None, parallel: bool = True) -> Analysis:
     """Run the diagnosis (see module docstring); ``effects`` limits the candidates (``none`` is always one);
     ``second`` also tries a second effect on top of the verdict, greedily (None: when the verdict leaves a
-    residual clearly above the noise, see :func:`_needs_second`); ``parallel`` lets the simulator
+    residual above the floor, see :func:`_needs_second`); ``parallel`` lets the simulator
     use a second core (a forked worker process)."""
     ds = load(dataset_dir)
     T = ds.given["sample_time"]

@@ -158,20 +158,22 @@ def _roots(runs: RigParams, kq: float) -> tuple[float, tuple[float, float], bool
 
 def viscous_b(runs: RigParams, d: float, sigma: float) -> tuple[float, float, float, bool, float | None]:
     """B [lbf·s/in] behind a loop-gain deficit ``d`` = ln(flow test Kq / runs' Kq) of standard error ``sigma``:
-    (B, lo, hi, whether a B within the deficit's 95 % interval explains it exactly, the larger root where the
-    interval reaches it, else None). B and the interval come from the smaller root. Where the mechanical damping
-    B/M can exceed the hydraulic g·Kce, the larger root gives the same closed loop, and the data cannot choose:
-    for a deficit clearly above 0, the interval then reaches up to the larger root of the interval's lower end
-    (at most :data:`B_REALISTIC`), if the larger root of its upper end (or where the roots meet, beyond the
-    largest deficit any B explains) is a realistic rig: B at most :data:`B_REALISTIC`, Kce at least
-    :data:`KCE_REALISTIC`."""
+    (B, lo, hi, whether a B within the deficit's 95 % interval explains it exactly, the deficit's larger root
+    where the interval reaches up to it and it is a realistic rig, else None). B and the interval come from the
+    smaller root. Where the mechanical damping B/M can exceed the hydraulic g·Kce, the larger root gives the
+    same closed loop, and the data cannot choose: for a deficit clearly above 0, the interval then reaches up to
+    the larger root of the interval's lower end (at most :data:`B_REALISTIC`), if the larger root of its upper
+    end (or where the roots meet, beyond the largest deficit any B explains) is a realistic rig: B at most
+    :data:`B_REALISTIC`, Kce at least :data:`KCE_REALISTIC`."""
     ends = (d, d - Z95 * sigma, d + Z95 * sigma)
     fits = [_roots(runs, runs.Kq * float(np.exp(x))) if x > 0 else (0.0, (math.inf, 0.0), True) for x in ends]
-    (b, (larger, _), _), (lo, (top, _), explained), (hi, nearest, _) = fits  # nearest: the larger root closest to the smaller
+    (b, other, exact), (lo, (top, _), explained), (hi, nearest, _) = fits  # nearest: the larger root closest
     widened = explained and ends[1] > 0 and nearest[0] <= B_REALISTIC and nearest[1] >= KCE_REALISTIC
     if widened:
         hi = max(hi, min(top, B_REALISTIC))
-    return b, lo, hi, explained and lo > 0, larger if widened else None
+    # the deficit's own larger root, where it is another realistic rig inside the interval
+    larger = widened and exact and b < other[0] <= B_REALISTIC and other[1] >= KCE_REALISTIC
+    return b, lo, hi, explained and lo > 0, other[0] if larger else None
 
 
 def _log_se(v: Value, quantile: float) -> float:

@@ -108,10 +108,11 @@ def _viscous(d: Diagnosis) -> str:
         wide = "" if alt is None else (
             f" The interval is wide because a rig with more viscous friction and less leakage, B = "
             f"{show(alt.value, 'lbf*s/in')}, gives the same closed loop.")
-        return (f"The runs' loop gain is {100 * lg.deficit:.2g} % below the flow test's Kq ({lg.deficit_z:.2g} standard "
-                f"errors); viscous friction B = {show(lg.viscous_B.value, 'lbf*s/in')} (95 % interval "
-                f"{show(lo, 'lbf*s/in')} to {show(hi, 'lbf*s/in')}) reconciles them.{wide} In the closed loop it acts "
-                "as a larger Kce and a smaller Kq, so the runs alone cannot name it; the friction test would measure it.")
+        return (f"The runs' loop gain is {100 * lg.deficit:.2g} % below the flow test's Kq ({lg.deficit_z:.2g} "
+                f"standard errors); viscous friction B = {show(lg.viscous_B.value, 'lbf*s/in')} (95 % interval "
+                f"{show(lo, 'lbf*s/in')} to {show(hi, 'lbf*s/in')}) reconciles them.{wide} In the closed loop it "
+                "acts as a larger Kce and a smaller Kq, so the runs alone cannot name it; the friction test would "
+                "measure it.")
     return (f"The friction test shows viscous friction B = {show(b.value, 'lbf*s/in')} (95 % interval "
             f"{show(b.interval[0], 'lbf*s/in')} to {show(b.interval[1], 'lbf*s/in')}); in the closed loop it acts "
             "almost exactly as a larger Kce, so the runs alone cannot name it.")

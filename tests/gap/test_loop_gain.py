@@ -12,7 +12,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from grader.gap.diagnose import analyse
-from grader.gap.evidence import DEFICIT_Z, DEFICIT_Z_BESIDE, Z95, _damping, viscous_b
+from grader.gap.evidence import B_REALISTIC, DEFICIT_Z, DEFICIT_Z_BESIDE, Z95, _damping, viscous_b, \
+    viscous_from_loop_gain
+from grader.gap.schema import LoopGainInfo, Value, Verdict
 from grader.gap.summary import summary
 from grader.stations import load_station
 
@@ -101,6 +103,19 @@ def test_b_interval_reaches_the_larger_root_where_mechanical_damping_dominates()
     assert larger == pytest.approx(1.2, rel=1e-6)  # the deficit's own larger root is the true rig
 
 
+@settings(max_examples=60, deadline=None)
+@given(B=st.floats(0.2, 2.5), kce=st.floats(0.5e-4, 8e-4), shift=st.floats(0.8, 1.3), rel=st.floats(0.05, 0.6))
+def test_the_larger_root_reported_is_another_realistic_rig_inside_the_interval(B: float, kce: float, shift: float,
+                                                                              rel: float) -> None:
+    """Whatever the deficit and its error (up to past the largest deficit any B explains), a larger root is
+    reported only as a realistic rig (B up to 1.5 lbf·s/in) above the reported B and inside its interval."""
+    rig = load_station("default").params().with_(B=B, Kce=kce)
+    seen = seen_without_b(rig)
+    d = shift * math.log(rig.Kq / seen.Kq)
+    b, lo, hi, _, larger = viscous_b(seen, d, rel * d)
+    assert larger is None or b < larger <= B_REALISTIC and lo <= larger <= hi
+
+
 def test_b_interval_keeps_to_the_smaller_root_where_the_larger_is_no_realistic_rig() -> None:
     """The default station's leakage (Kce = 7.2e-4) with B = 0.5: the larger root is a B of several lbf·s/in with
     almost no leakage, no realistic rig; the interval is the smaller roots' and holds the truth."""
@@ -118,9 +133,6 @@ def test_viscous_friction_beside_a_named_effect_needs_the_stricter_deficit(z: fl
     """Beside an effect the runs name, the deficit must reach DEFICIT_Z_BESIDE (2.5) standard errors: benchmark
     seed 500's case 65 (a backlash with B = 1.37 lbf·s/in) reaches 2.62, while no rig of 236 with one effect the
     runs name passed 2.32."""
-    from grader.gap.evidence import viscous_from_loop_gain
-    from grader.gap.schema import LoopGainInfo, Value, Verdict
-
     verdict = Verdict(effect="valve_hysteresis", margin=1.0, runner_up="none", confidence=1.0,
                       indistinguishable_from=[], shares={"valve_hysteresis": 1.0}, explanation="valve_hysteresis")
     kq = Value(value=0.04, unit="in**3/s/mA", interval=(0.039, 0.041))
