@@ -133,20 +133,14 @@ def quantized(verdict: Verdict, quant: Quantization | None) -> Verdict:
     return _add(verdict, "sensor_quantization", quant.text())
 
 
-def _damping(runs: RigParams, kq: float) -> tuple[float, bool]:
-    """The viscous friction B [lbf·s/in] to add to ``runs`` so that, with Kq = ``kq`` and β/Vt, Kce re-fitted, its
-    plant coefficients (:func:`~grader.model.linear.plant_coeffs`) are those of ``runs``, and whether some B does
-    so exactly. b0 fixes g = 4β/Vt, a2 then Kce, and a1 leaves a quadratic in B, B² − a2·M·B + M·(a1·M − g·A²) = 0,
-    whose smaller root is right while B/M is less of the damping than g·Kce. Beyond the largest deficit any B
-    explains (no real root), the B that comes closest in the stiffness a1 (the other two exact), a2·M/2, not
-    exact. In closed form: the same bytes on any CPU."""
-    small, _, exact = _roots(runs, kq)
-    return small, exact
-
-
 def _roots(runs: RigParams, kq: float) -> tuple[float, tuple[float, float], bool]:
-    """:func:`_damping`'s smaller root, the larger root with the Kce [in³/s/psi] it implies (right where the
-    mechanical damping B/M exceeds the hydraulic g·Kce), both less ``runs``' own B, and whether they are real."""
+    """The viscous friction B [lbf·s/in] to add to ``runs`` so that, with Kq = ``kq`` and β/Vt, Kce re-fitted, its
+    plant coefficients (:func:`~grader.model.linear.plant_coeffs`) are those of ``runs``; the other B that does so
+    with the Kce [in³/s/psi] it implies; and whether they do so exactly. b0 fixes g = 4β/Vt, a2 then Kce, and a1
+    leaves a quadratic in B, B² − a2·M·B + M·(a1·M − g·A²) = 0, whose smaller root is right while B/M is less of
+    the damping than g·Kce, the larger where it is more. Beyond the largest deficit any B explains (no real root),
+    both are the B that comes closest in the stiffness a1 (the other two exact), a2·M/2, not exact. Both less
+    ``runs``' own B. In closed form: the same bytes on any CPU."""
     a2, a1, b0 = plant_coeffs(runs)
     g = b0 * runs.M / (kq * runs.A)
     disc = (a2 * runs.M) ** 2 - 4.0 * runs.M * (a1 * runs.M - g * runs.A**2)

@@ -79,7 +79,8 @@ def _linear_region(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[n
     outward, among the points ``inside`` (short of where the clipped V saturates), until a point and the next one
     out both leave the fitted V on the same side by more than 4 σ or 1 % (saturation begins there, and it
     persists). A single reading off the V is noise and stays in: stopping at it ends the region where the
-    noise happens to pull against the slope."""
+    noise happens to pull against the slope. The outermost reading, with none beyond to tell, stays out when
+    it is off the V."""
     d = i - x0[1]
     keep = _core(d, d_sat)
     for side in (1.0, -1.0):

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from grader.gap.diagnose import analyse
-from grader.gap.evidence import B_REALISTIC, DEFICIT_Z, DEFICIT_Z_BESIDE, Z95, _damping, viscous_b, \
+from grader.gap.evidence import B_REALISTIC, DEFICIT_Z, DEFICIT_Z_BESIDE, Z95, _roots, viscous_b, \
     viscous_from_loop_gain
 from grader.gap.schema import LoopGainInfo, Value, Verdict
 from grader.gap.summary import summary
@@ -31,10 +31,10 @@ def test_the_damping_found_is_the_rigs_own(B: float, kce_scale: float) -> None:
     rig = rig.with_(B=B, Kce=rig.Kce * kce_scale)
     seen = seen_without_b(rig)
     assert seen.Kq < rig.Kq
-    found, exact = _damping(seen, rig.Kq)
+    found, _, exact = _roots(seen, rig.Kq)
     assert exact and found == pytest.approx(B, rel=1e-4)
-    assert _damping(seen, seen.Kq)[0] == pytest.approx(0.0, abs=1e-9)
-    assert not _damping(seen, rig.Kq * 3)[1]  # a deficit of two thirds: no viscous friction explains it
+    assert _roots(seen, seen.Kq)[0] == pytest.approx(0.0, abs=1e-9)
+    assert not _roots(seen, rig.Kq * 3)[2]  # a deficit of two thirds: no viscous friction explains it
 
 
 def _without_friction_test(src: Path, dst: Path) -> Path:
@@ -124,7 +124,7 @@ def test_b_interval_keeps_to_the_smaller_root_where_the_larger_is_no_realistic_r
     d = math.log(rig.Kq / seen.Kq)
     b, lo, hi, explained, larger = viscous_b(seen, d, 0.1 * d)
     assert explained and b == pytest.approx(0.5, rel=1e-6) and larger is None
-    assert hi == pytest.approx(_damping(seen, seen.Kq * math.exp(d + Z95 * 0.1 * d))[0], rel=1e-12)
+    assert hi == pytest.approx(_roots(seen, seen.Kq * math.exp(d + Z95 * 0.1 * d))[0], rel=1e-12)
     assert lo <= 0.5 <= hi < 1.0  # not widened to the larger root
 
 

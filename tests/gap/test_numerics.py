@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.signal import savgol_coeffs, savgol_filter
 
-from grader.gap.evidence import _damping
+from grader.gap.evidence import _roots
 from grader.gap.lm import damped_steps, sumsq
 from grader.gap.runs import _DENOMINATOR, _FIT, NOISE_ORDER, NOISE_WINDOW, SMOOTH, quintic_smooth
 from grader.model.linear import plant_coeffs
@@ -54,7 +54,7 @@ def test_the_viscous_b_behind_a_loop_gain_deficit_is_found_exactly(B: float) -> 
     true = load_station("default").params().with_(B=B)
     runs = seen_without_b(true)
     assert np.allclose(plant_coeffs(runs), plant_coeffs(true), rtol=1e-12)
-    found, exact = _damping(runs, true.Kq)
+    found, _, exact = _roots(runs, true.Kq)
     assert exact and found == pytest.approx(B, abs=1e-9)
 
 
@@ -67,7 +67,7 @@ def test_quintic_smooth_refuses_fewer_samples_than_its_window() -> None:
 def test_a_deficit_larger_than_any_b_explains_gives_the_closest_b_not_exact(B: float) -> None:
     runs = load_station("default").params().with_(B=B)
     a2 = plant_coeffs(runs)[0]
-    found, exact = _damping(runs, runs.Kq * 1e3)
+    found, _, exact = _roots(runs, runs.Kq * 1e3)
     assert not exact and found == pytest.approx(a2 * runs.M / 2 - B, rel=1e-12)
 
 
@@ -80,5 +80,5 @@ def test_an_existing_b_is_added_to() -> None:
     g = (a1 * M - B0 * a2 + B0**2 / M) / A**2
     runs = true.with_(B=B0, beta_over_Vt=g / 4.0, Kce=(a2 - B0 / M) / g, Kq=b0 * M / (g * A))
     assert np.allclose(plant_coeffs(runs), (a2, a1, b0), rtol=1e-12)
-    found, exact = _damping(runs, true.Kq)
+    found, _, exact = _roots(runs, true.Kq)
     assert exact and found == pytest.approx(0.9 - B0, abs=1e-9)

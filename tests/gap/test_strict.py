@@ -9,13 +9,16 @@ import numpy as np
 import pytest
 
 from grader.cli import main
-from grader.gap.bench import Case
+from grader.datasets import load
+from grader.gap.bench import BenchConfig, Case, make_case_dataset
 from grader.gap.bench_report import render
+from grader.gap.bench_run import tasks
+from grader.gap.diagnose import analyse
 from grader.gap.evidence import Friction, viscous
 from grader.gap.noise import Noise
 from grader.gap.quantization import assess
 from grader.gap.runs import GapRun
-from grader.gap.schema import Verdict
+from grader.gap.schema import Diagnosis, Verdict
 from grader.gap.separating import GENERIC, separating_test
 from grader.model.effects import EffectSet
 from grader.model.params import Controller
@@ -137,9 +140,6 @@ def test_friction_test_adds_viscous_friction_as_second_effect_with_no_share_of_t
 
 
 def test_a_benchmark_dataset_without_the_friction_test_has_no_friction_file_and_still_loads(tmp_path: Path) -> None:
-    from grader.datasets import load
-    from grader.gap.bench import make_case_dataset
-
     station = load_station("default").model_copy(update={"effects": {}})
     folder = make_case_dataset(station, EffectSet(), tmp_path / "case", 1, friction_test=False)
     manifest = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
@@ -148,34 +148,30 @@ def test_a_benchmark_dataset_without_the_friction_test_has_no_friction_file_and_
     assert {"calibration.csv", "flow.csv", "instability.csv"} <= {p.name for p in folder.iterdir()}
 
 
-def test_a_second_effect_must_beat_the_verdict_alone_as_the_first_search_scored_it(tmp_path: Path) -> None:
-    """Benchmark case 163 of seed 300 (the orifice law alone, from the solve_ivp path): a spool lag on top fits
-    the instability run far better, but predicts the left-out runs worse than the orifice law alone as the
-    first search scored it (held-out score 4.1e-4 against 2.3e-4). Its refit from the pair search's start had
-    scored worse than both and let the pair through; the verdict is now the orifice law alone."""
-    from grader.gap.bench import BenchConfig, make_case_dataset
-    from grader.gap.bench_run import tasks
-    from grader.gap.diagnose import analyse
-
-    task = tasks(BenchConfig(n=25, pairs=60, seed=300, friction_test=False), tmp_path)[163]
-    assert task.label == "pressure_flow_nonlinearity"
+def _seed_300_case(index: int, tmp_path: Path) -> tuple[str, Diagnosis]:
+    """Benchmark run A's dataset ``index`` (seed 300, no friction test, from the solve_ivp path), rebuilt and
+    diagnosed: its withheld effects and the diagnosis."""
+    task = tasks(BenchConfig(n=25, pairs=60, seed=300, friction_test=False), tmp_path)[index]
     make_case_dataset(task.station, task.truth, task.folder, task.seed, friction_test=False)
-    d = analyse(task.folder).diagnosis
+    return task.label, analyse(task.folder).diagnosis
+
+
+def test_a_second_effect_must_beat_the_verdict_alone_as_the_first_search_scored_it(tmp_path: Path) -> None:
+    """Benchmark case 163 of seed 300 (the orifice law alone): a spool lag on top fits the instability run far
+    better, but predicts the left-out runs worse than the orifice law alone as the first search scored it
+    (held-out score 4.1e-4 against 2.3e-4). Its refit from the pair search's start had scored worse than both
+    and let the pair through; the verdict is now the orifice law alone."""
+    label, d = _seed_300_case(163, tmp_path)
+    assert label == "pressure_flow_nonlinearity"
     assert (d.verdict.effect, d.verdict.second_effect) == ("pressure_flow_nonlinearity", None)
     assert not any("+" in c.effect for c in d.candidates)
 
 
 def test_a_weak_second_effect_is_named_once_it_fits_clearly_better(tmp_path: Path) -> None:
-    """Benchmark case 298 of seed 300 (a 0.36 ms delay on top of a 0.55 mA backlash, from the solve_ivp path): the
-    backlash alone leaves 1.3 times the floor's mean square, and the delay on top removes 0.35 of it while it
-    predicts the left-out runs 16 % better. Both must be named (the old bar, 1.5 times the floor before a pair
-    search and 0.5 of it removed, named the backlash alone)."""
-    from grader.gap.bench import BenchConfig, make_case_dataset
-    from grader.gap.bench_run import tasks
-    from grader.gap.diagnose import analyse
-
-    task = tasks(BenchConfig(n=25, pairs=60, seed=300, friction_test=False), tmp_path)[298]
-    assert set(task.label.split("+")) == {"sampling_delay", "valve_hysteresis"}
-    make_case_dataset(task.station, task.truth, task.folder, task.seed, friction_test=False)
-    d = analyse(task.folder).diagnosis
+    """Benchmark case 298 of seed 300 (a 0.36 ms delay on top of a 0.55 mA backlash): the backlash alone leaves
+    1.3 times the floor's mean square, and the delay on top removes 0.35 of it while it predicts the left-out
+    runs 16 % better. Both must be named (the old bar, 1.5 times the floor before a pair search and 0.5 of it
+    removed, named the backlash alone)."""
+    label, d = _seed_300_case(298, tmp_path)
+    assert set(label.split("+")) == {"sampling_delay", "valve_hysteresis"}
     assert (d.verdict.effect, d.verdict.second_effect) == ("valve_hysteresis", "sampling_delay")

@@ -113,8 +113,8 @@ def test_flow_fit_interval_covers_kq_at_its_stated_rate() -> None:
 
 
 def test_flow_fit_keeps_a_single_noisy_reading_and_the_line_beyond_it() -> None:
-    """One reading 5 % low at +6 V (30 mA, outside the core) is noise, not the start of saturation: the readings beyond it, up to
-    the clip at 40 mA, stay in the fit, and none past the clip enters it."""
+    """One reading 5 % low at +6 V (30 mA, outside the core) is noise, not the start of saturation: the readings
+    beyond it, up to the clip at 40 mA, stay in the fit, and none past the clip enters it."""
     v = np.arange(-10, 10.01, 0.5)
     i = 5.0 * v
     q = np.abs(0.04 * np.clip(i, -40, 40)) + 0.11
