@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -21,7 +22,7 @@ from grader.gap import baseline as baseline_mod
 from grader.gap import build, evidence
 from grader.gap import noise as noise_mod
 from grader.gap import quantization as quant_mod
-from grader.gap.backend import Backend, Point, Worker, worker
+from grader.gap.backend import Backend, Point, worker
 from grader.gap.candidates import NONE, NOT_FROM_RUNS, Candidate, make_candidates
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
@@ -102,7 +103,7 @@ def _significant(cand: SchemaCandidate, effect: str) -> bool:
 
 
 def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, others: Sequence[Candidate],
-            floor_nrmse: Array, before: CrossValidation, executor: Worker | None,
+            floor_nrmse: Array, before: CrossValidation, executor: Executor | None,
             first_scored: Scored) -> tuple[FitState, SchemaCandidate, Scored] | None:
     """The best second effect on top of ``first`` if it explains clearly more than ``first`` alone (beyond the
     floor ``first`` leaves, by :data:`SECOND_GAIN`), else None; an addition whose parameter's 95 % interval
@@ -130,7 +131,7 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
 
 def _pair_beyond_none(objs: Sequence[RunObjective], base: baseline_mod.Baseline, found: SearchResult, rk: Ranking,
                       candidates: Sequence[Candidate], noise_nrmse: Array, sigma: float, before: CrossValidation,
-                      executor: Worker | None) -> tuple[Ranking, tuple[FitState, SchemaCandidate, Scored] | None]:
+                      executor: Executor | None) -> tuple[Ranking, tuple[FitState, SchemaCandidate, Scored] | None]:
     """No single effect explains the gap, yet the linear model leaves NONE_GAP times the noise's mean square
     (two effects that each alone fit no better, as a deadband beside a backlash): the effect that fits best
     with each other effect on top. A pair that explains clearly more than its first effect and than ``none``
@@ -243,7 +244,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     """Run the diagnosis (see module docstring); ``effects`` limits the candidates (``none`` is always one);
     ``second`` also tries a second effect on top of the verdict, greedily (None: when the verdict leaves a
     residual above the floor, see :func:`_needs_second`); ``parallel`` lets the simulator
-    use a second core (a forked worker process)."""
+    use a second core (a worker thread)."""
     ds = load(dataset_dir)
     T = ds.given["sample_time"]
     runs = prepare_runs(ds, T)

@@ -13,12 +13,13 @@ leave-one-run-out cross-validation.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from grader.gap.backend import Backend, Worker
+from grader.gap.backend import Backend
 from grader.gap.candidates import N_LINEAR, NONE, Candidate, combine
 from grader.gap.crossval import CrossValidation, cross_validate
 from grader.gap.fit import BatchFitter, FitState, grid_starts
@@ -41,7 +42,7 @@ class SearchResult:
 
 
 def _fitter(objectives: Sequence[RunObjective], base: RigParams, window: float | None,
-            executor: Worker | None) -> BatchFitter:
+            executor: Executor | None) -> BatchFitter:
     """A fitter on the runs cut to ``window`` seconds after their command (None: whole)."""
     cut = [o.cut(window) for o in objectives]
     return BatchFitter(cut, base, Backend([o.run for o in cut], executor=executor))
@@ -53,7 +54,7 @@ def _with_linear(states: Sequence[FitState], which: Sequence[int], lin: Array) -
 
 
 def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequence[Candidate], *,
-           executor: Worker | None = None, theta0: Sequence[Array] | None = None) -> SearchResult:
+           executor: Executor | None = None, theta0: Sequence[Array] | None = None) -> SearchResult:
     """Fit ``candidates`` around ``base`` on the runs of ``objectives`` and cross-validate them (see module
     docstring); ``theta0`` are the profile's starting points (default: the baseline, zero magnitudes).
 
@@ -79,7 +80,7 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
 
 
 def second_effect(objectives: Sequence[RunObjective], base: RigParams, first: FitState, others: Sequence[Candidate], *,
-                  executor: Worker | None = None) -> SearchResult:
+                  executor: Executor | None = None) -> SearchResult:
     """Each of ``others`` added on top of the fitted ``first`` (greedy), searched from first's optimum;
     the first alone comes back as the last entry, the reference the additions must beat."""
     combos = [combine(first.candidate, o) for o in others]

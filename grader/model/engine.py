@@ -359,8 +359,9 @@ def _run(par, ctl, r, noise, K: int, m: int, Y, U, X):  # noqa: ANN001, ANN201, 
         _loop(par, ctl, r, noise, K, False, ev, n_a, n_b, hs, mats, phis, gams, Y, U, X, z, z1, w, wk)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _run_batch(par, ctl, r, noise, K, m, Y, U, X):  # noqa: ANN001, ANN201, N803
+    """Every run of the batch; without the GIL, so a second thread can simulate another batch meanwhile."""
     for j in range(par.shape[0]):
         _run(par[j], ctl[j], r[j], noise[j], K[j], m[j], Y[j], U[j], X[j])
 

@@ -1,4 +1,4 @@
-"""The batched simulator: half of each batch in a forked worker, handed back through shared memory."""
+"""The batched simulator: half of each batch in a worker thread."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from grader.datasets import load
-from grader.gap import backend, baseline
+from grader.gap import baseline
 from grader.gap.backend import Backend, Point, worker
 from grader.gap.runs import prepare_runs
 from grader.model.effects import EffectSet
@@ -23,20 +23,16 @@ def _requests(make: MakeDataset) -> tuple[list, list[tuple[Point, int]]]:
     return runs, [(pt, i) for pt in points for i in range(len(runs))]
 
 
-@pytest.mark.parametrize("shared_bytes", [backend.SHARED_BYTES, 64])
-def test_the_worker_returns_what_this_process_computes(make: MakeDataset, monkeypatch: pytest.MonkeyPatch,
-                                                       shared_bytes: int) -> None:
-    """Through the shared memory, or pickled where a batch does not fit in it (64 bytes), every position equals
-    the one simulated here alone, in order, and a second batch overwrites nothing the first returned."""
+def test_the_worker_thread_returns_what_this_thread_computes(make: MakeDataset) -> None:
+    """Half of each batch in the worker thread: every position equals the one simulated here alone, in order,
+    batch after batch."""
     runs, requests = _requests(make)
     alone = Backend(runs)(requests)
-    monkeypatch.setattr(backend, "SHARED_BYTES", shared_bytes)
     with worker() as w:
         if w is None:
-            pytest.skip("no fork or a single core")
+            pytest.skip("a single core")
         both = Backend(runs, executor=w)
-        first = both(requests)
-        second = both(requests[::-1])
+        first, second = both(requests), both(requests[::-1])
     assert len(first) == len(alone) == len(second)
     for a, b, c in zip(alone, first, second[::-1]):
         assert a.shape == b.shape and np.array_equal(a, b) and np.array_equal(a, c)
