@@ -208,7 +208,6 @@ def loop_gain(ds: Dataset, cand: Candidate, base: RigParams, quantile: float) ->
     sigma = float(np.sqrt((flow.se / flow.value) ** 2 + _log_se(runs_kq, quantile) ** 2 + _kpot_se(ds) ** 2))
     z = d / sigma if sigma > 0 else 0.0
     b, lo, hi, explained, larger = viscous_b(runs, d, sigma)
-    # (beyond the largest deficit any B explains, B is the closest, at the interval's top)
     return LoopGainInfo(flow_test_Kq=flow_kq, runs_Kq=runs_kq, candidate=cand.effect,
                         deficit=build.r6(1.0 - float(np.exp(-d))), deficit_z=build.r6(z),
                         viscous_B=build.value(b, "lbf*s/in", (lo, hi)), names_viscous=names_viscous(z, explained),
@@ -217,7 +216,8 @@ def loop_gain(ds: Dataset, cand: Candidate, base: RigParams, quantile: float) ->
 
 def names_viscous(z: float, explained: bool) -> bool:
     """Whether a loop-gain deficit of ``z`` standard errors names viscous friction: at least :data:`DEFICIT_Z`, and
-    a B within the deficit's 95 % interval explains it exactly (:func:`viscous_b`)."""
+    a B within the deficit's 95 % interval explains it exactly (:func:`viscous_b`; beyond the largest deficit any
+    B explains, B is the closest, at the interval's top)."""
     return z >= DEFICIT_Z and explained
 
 

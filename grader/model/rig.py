@@ -137,7 +137,7 @@ def simulate_rig(
 
 @dataclass(frozen=True)
 class PositionBatch:
-    """Resolved runs of different lengths (picklable: a worker process can run it)."""
+    """Resolved runs of different lengths (picklable: another process can run it)."""
 
     a: RigArrays
     r: Array  # (n, Kmax) commands [in], padded with their last value

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
-import pytest
 
 from grader.datasets import load
 from grader.gap import baseline
 from grader.gap.backend import Backend, Point, worker
 from grader.gap.runs import prepare_runs
+from grader.model import engine
 from grader.model.effects import EffectSet
 
 from .conftest import MakeDataset
@@ -23,16 +26,25 @@ def _requests(make: MakeDataset) -> tuple[list, list[tuple[Point, int]]]:
     return runs, [(pt, i) for pt in points for i in range(len(runs))]
 
 
-def test_the_worker_thread_returns_what_this_thread_computes(make: MakeDataset) -> None:
-    """Half of each batch in the worker thread: every position equals the one simulated here alone, in order,
-    batch after batch."""
+def test_a_worker_thread_returns_what_this_thread_computes(make: MakeDataset) -> None:
+    """Half of each batch in a worker thread: every position equals the one simulated here alone, in order,
+    batch after batch (on any number of cores)."""
     runs, requests = _requests(make)
     alone = Backend(runs)(requests)
-    with worker() as w:
-        if w is None:
-            pytest.skip("a single core")
-        both = Backend(runs, executor=w)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        both = Backend(runs, executor=pool)
         first, second = both(requests), both(requests[::-1])
     assert len(first) == len(alone) == len(second)
     for a, b, c in zip(alone, first, second[::-1]):
         assert a.shape == b.shape and np.array_equal(a, b) and np.array_equal(a, c)
+
+
+def test_the_worker_is_a_thread_where_a_second_core_exists_and_the_engine_lets_it_run() -> None:
+    """The diagnosis gets its worker thread on two cores or more and none when disabled; the engine's batch loop
+    releases the GIL, without which the thread would wait for this one."""
+    with worker() as w:
+        assert (w is None) == ((os.cpu_count() or 1) < 2)
+        assert w is None or isinstance(w, ThreadPoolExecutor)
+    with worker(enabled=False) as w:
+        assert w is None
+    assert engine._run_batch.targetoptions.get("nogil") is True

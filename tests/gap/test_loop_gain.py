@@ -129,8 +129,8 @@ def test_b_interval_keeps_to_the_smaller_root_where_the_larger_is_no_realistic_r
 
 
 @pytest.mark.parametrize(("z", "explained", "named"),
-                         [(2.05, True, False), (2.45, True, False), (2.62, True, True), (3.5, True, True),
-                          (3.5, False, False)])
+                         [(2.05, True, False), (2.45, True, False), (DEFICIT_Z, True, True), (2.62, True, True),
+                          (3.5, True, True), (3.5, False, False)])
 def test_the_loop_gain_names_viscous_friction_from_2_5_standard_errors(z: float, explained: bool,
                                                                          named: bool) -> None:
     """A unit-normal deficit passes 2.5 on 0.6 % of rigs without viscous friction: benchmark seeds 600 and 700's
@@ -143,6 +143,8 @@ def test_the_loop_gain_names_viscous_friction_from_2_5_standard_errors(z: float,
 @pytest.mark.parametrize("names", [False, True])
 def test_viscous_friction_is_added_alone_or_beside_exactly_when_the_loop_gain_names_it(effect: str,
                                                                                          names: bool) -> None:
+    """A loop gain that names viscous friction makes it the verdict where the runs name nothing and the second
+    effect beside an effect they name; one that does not changes nothing."""
     verdict = Verdict(effect=effect, margin=1.0, runner_up="none", confidence=1.0,
                       indistinguishable_from=[], shares={effect: 1.0} if effect != "none" else {},
                       explanation=effect)
