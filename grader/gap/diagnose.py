@@ -36,7 +36,7 @@ from grader.gap.segments import Segment, segments_of
 from grader.gap.spread import spread
 from grader.gap.separating import separating_test
 from grader.model.effects import EFFECTS
-from grader.gap.verdict import Ranking, Scored, decide, rank, scores
+from grader.gap.verdict import Ranking, Scored, decide, fit_gain, rank, scores
 
 Array = NDArray[np.float64]
 #: A verdict whose fit leaves more than this many times the floor's mean square (the reading noise's and what the
@@ -111,7 +111,8 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
     refitted from the pair search's start; where its score from the first search, ``first_scored``, is better,
     that is the one to beat (a refit whose folds fell into worse optima let a pair through that predicted the
     left-out runs worse than the verdict alone)."""
-    found = second_effect(objs, base.params, first, others, executor=executor)
+    found = second_effect(objs, base.params, first, others, executor=executor,
+                          keep=lambda ends, lengths: _could_pass(ends, lengths, floor_nrmse, first_scored))
     scored = _scored(found)
     if scores([first_scored])[0] < scores([scored[-1]])[0]:
         scored[-1] = first_scored
@@ -127,6 +128,20 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
     if pick == len(keep) - 1:
         return None
     return found.states[keep[pick]], built[keep[pick]], scored[keep[pick]]
+
+
+def _could_pass(ends: Sequence[FitState], lengths: Sequence[int], floor_nrmse: Array,
+                first_scored: Scored) -> list[bool]:
+    """Which fits of a second-effect search can still pass :data:`SECOND_GAIN`'s bar on the all-runs fit, which
+    needs no cross-validation: the first alone (last) always; an addition only where it lowers the mean square of
+    one of the first's two fits (this search's and ``first_scored``'s, whichever :func:`_second` ends up
+    comparing with) by more than SECOND_GAIN times the floor's. The others could not be picked; their
+    cross-validation, about a third of the search, is skipped."""
+    w = np.ones(floor_nrmse.size)
+    refs = (_fit_nrmse(ends[-1], lengths), first_scored.fit)
+    return [k == len(ends) - 1 or any(fit_gain(r, _fit_nrmse(s, lengths), floor_nrmse, w, SECOND_GAIN) > 1.0
+                                      for r in refs)
+            for k, s in enumerate(ends)]
 
 
 def _pair_beyond_none(objs: Sequence[RunObjective], base: baseline_mod.Baseline, found: SearchResult, rk: Ranking,

@@ -12,7 +12,7 @@ leave-one-run-out cross-validation.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
 
@@ -53,10 +53,16 @@ def _with_linear(states: Sequence[FitState], which: Sequence[int], lin: Array) -
     return [replace(states[k], theta=np.concatenate([lin, states[k].theta[N_LINEAR:]])) for k in which]
 
 
+#: Which of a search's fitted states (given the runs' lengths) are worth cross-validating; the rest are left out.
+Keep = Callable[[Sequence[FitState], Sequence[int]], Sequence[bool]]
+
+
 def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequence[Candidate], *,
-           executor: Executor | None = None, theta0: Sequence[Array] | None = None) -> SearchResult:
+           executor: Executor | None = None, theta0: Sequence[Array] | None = None,
+           keep: Keep | None = None) -> SearchResult:
     """Fit ``candidates`` around ``base`` on the runs of ``objectives`` and cross-validate them (see module
-    docstring); ``theta0`` are the profile's starting points (default: the baseline, zero magnitudes).
+    docstring); ``theta0`` are the profile's starting points (default: the baseline, zero magnitudes). With
+    ``keep``, only the fits it keeps are cross-validated and returned, in order.
 
     Every whole-run fit starts twice, keeping the better end: from where the short windows led it and from
     the baseline's linear coordinates (for a second effect, the first effect's optimum's), since a profile can
@@ -76,14 +82,18 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
         again = full.fit(full.rebase(_with_linear(states, redo, ends[ref].theta[:N_LINEAR])), rounds=FULL_ROUNDS)
         for k, s in zip(redo, again):
             ends[k] = min(ends[k], s, key=lambda x: x.cost)
+    if keep is not None:
+        ends = [s for s, k in zip(ends, keep(ends, full.lengths)) if k]
     return SearchResult(ends, cross_validate(full, ends), full.lengths)
 
 
 def second_effect(objectives: Sequence[RunObjective], base: RigParams, first: FitState, others: Sequence[Candidate], *,
-                  executor: Executor | None = None) -> SearchResult:
+                  executor: Executor | None = None, keep: Keep | None = None) -> SearchResult:
     """Each of ``others`` added on top of the fitted ``first`` (greedy), searched from first's optimum;
-    the first alone comes back as the last entry, the reference the additions must beat."""
+    the first alone comes back as the last entry, the reference the additions must beat (``keep`` must keep
+    it: see :func:`search`)."""
     combos = [combine(first.candidate, o) for o in others]
     starts = [np.concatenate([first.theta, np.zeros(c.n_theta - first.theta.size)]) for c in combos]
-    return search(objectives, base, [*combos, first.candidate], executor=executor, theta0=[*starts, first.theta])
+    return search(objectives, base, [*combos, first.candidate], executor=executor, theta0=[*starts, first.theta],
+                  keep=keep)
 

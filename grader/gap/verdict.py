@@ -97,8 +97,13 @@ def evidence(none: Scored, eff: Scored, noise_nrmse: Array, w: Array, gain: floa
     """E of ``eff`` against ``none`` (see module docstring; the held-out gain in units of ``rel_gain``, the fit's
     in units of ``gain`` × the floor's mean square); > 1 means clearly more than noise."""
     held = (1.0 - _held(eff, w) / _held(none, w)) / rel_gain
-    fit = (_ms(none.fit, w) - _ms(eff.fit, w)) / (gain * _ms(noise_nrmse, w))
-    return min(held, fit)
+    return min(held, fit_gain(none.fit, eff.fit, noise_nrmse, w, gain))
+
+
+def fit_gain(reference: Array, fit: Array, noise_nrmse: Array, w: Array, gain: float = NOISE_GAIN) -> float:
+    """The all-runs fit's half of E: how far the per-run NRMSE ``fit`` lowers the mean square of ``reference``'s, in
+    units of ``gain`` × the floor's mean square (E > 1 needs this above 1 too)."""
+    return (_ms(reference, w) - _ms(fit, w)) / (gain * _ms(noise_nrmse, w))
 
 
 def decide(cands: Sequence[Scored], noise_nrmse: Array, weights: Array | None = None, *,

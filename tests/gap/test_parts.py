@@ -1,4 +1,4 @@
-"""Segments, noise floor and verdict rules on constructed inputs."""
+"""Segments, noise floor, verdict rules and the second-effect search's gate on constructed inputs."""
 
 from __future__ import annotations
 
@@ -9,11 +9,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from grader.gap.candidates import combine, make_candidates
+from grader.gap.diagnose import SECOND_GAIN, SECOND_REL_GAIN, _could_pass
+from grader.gap.fit import FitState
 from grader.gap.noise import adc_step, estimate, reading_noise
 from grader.gap.runs import GapRun
 from grader.gap.segments import segments_of, shares
-from grader.gap.verdict import Scored, rank
+from grader.gap.verdict import Scored, decide, rank
 from grader.model.params import Controller
+from grader.stations import load_station
 
 T = 0.001
 
@@ -109,3 +113,26 @@ def test_noise_floor_covers_the_quantisation_error(bits: int) -> None:
     assert noise.adc_step == pytest.approx(q, rel=1e-6)
     # a perfect model still misses the readings by the RMS quantisation error, dithered or not
     assert noise.floor == pytest.approx(np.sqrt(0.0004**2 + q**2 / 12), rel=0.35)
+
+
+_FITS = st.lists(st.floats(0.001, 0.2), min_size=6, max_size=6).map(np.array)
+
+
+@settings(max_examples=200, deadline=None)
+@given(floor=_FITS, combo=_FITS, refit=_FITS, earlier=_FITS)
+def test_a_second_effect_left_out_of_cross_validation_could_not_have_been_picked(floor: np.ndarray, combo: np.ndarray,
+                                                                                  refit: np.ndarray,
+                                                                                  earlier: np.ndarray) -> None:
+    """A pair search cross-validates only the additions whose all-runs fit can pass SECOND_GAIN's bar (per-run
+    NRMSE ``combo`` against the first alone refitted, ``refit``, or from the first search, ``earlier``). One it
+    leaves out is never picked, even where its held-out error would be perfect."""
+    cands = {c.effect: c for c in make_candidates(load_station("default").params())}
+    first, added = cands["coulomb_friction"], combine(cands["coulomb_friction"], cands["valve_deadband"])
+    ends = [FitState(c, (0,), np.zeros(c.n_theta), res=f.copy()) for c, f in ((added, combo), (first, refit))]
+    earlier_scored = Scored("coulomb_friction", earlier, earlier, 1)
+    keep = _could_pass(ends, [1] * 6, floor, earlier_scored)
+    assert keep[-1]
+    perfect = Scored("coulomb_friction+valve_deadband", np.full(6, 1e-9), combo, 2)
+    for reference in (Scored("coulomb_friction", refit, refit, 1), earlier_scored):
+        pick, _, _ = decide([perfect, reference], floor, reference=1, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
+        assert keep[0] or pick == 1
