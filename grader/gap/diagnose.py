@@ -120,14 +120,14 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
     runs = [o.run for o in objs]
     built = [build.candidate(st, cv, before, float(s), runs, found.lengths, base)
              for st, cv, s in zip(found.states, found.cvs, sc)]
-    keep = [i for i, st in enumerate(found.states[:-1])
-            if _significant(built[i], st.candidate.names[-1]) and st.candidate.strength(st.theta) >= SECOND_STRENGTH]
-    keep.append(len(scored) - 1)
-    pick, _, _ = decide([scored[i] for i in keep], floor_nrmse, reference=len(keep) - 1, gain=SECOND_GAIN,
+    eligible = [i for i, st in enumerate(found.states[:-1]) if _significant(built[i], st.candidate.names[-1])
+                and st.candidate.strength(st.theta) >= SECOND_STRENGTH]
+    eligible.append(len(scored) - 1)
+    pick, _, _ = decide([scored[i] for i in eligible], floor_nrmse, reference=len(eligible) - 1, gain=SECOND_GAIN,
                         rel_gain=SECOND_REL_GAIN)
-    if pick == len(keep) - 1:
+    if pick == len(eligible) - 1:
         return None
-    return found.states[keep[pick]], built[keep[pick]], scored[keep[pick]]
+    return found.states[eligible[pick]], built[eligible[pick]], scored[eligible[pick]]
 
 
 def _could_pass(ends: Sequence[FitState], lengths: Sequence[int], floor_nrmse: Array,

@@ -143,7 +143,7 @@ class LoopGainInfo(_Frozen):
     deficit: float = Field(description="1 − runs_Kq / flow_test_Kq")
     deficit_z: float = Field(description="ln(flow_test_Kq / runs_Kq) in standard errors of both intervals combined")
     viscous_B: Value = Field(description="viscous friction that gives the runs' closed loop at the flow test's Kq")
-    names_viscous: bool = Field(description="the deficit names viscous friction (at least 2.5 standard errors, DEFICIT_Z, and a B inside its interval explains it)")
+    names_viscous: bool = Field(description="the deficit names viscous friction (at least 2.5 standard errors, and a B inside its interval explains it)")
     viscous_B_larger_root: Value | None = Field(
         None, description="where a realistic rig with more viscous friction and less leakage gives the same closed loop "
                           "(the larger root of B's quadratic), its B; viscous_B's interval then reaches up to it (at most "
