@@ -63,6 +63,13 @@ class FitParam:
             return np.geomspace(self.typical_lo / self.scale, 1.0, n)
         return np.concatenate([[0.0], np.geomspace(1.0 / 16.0, 1.0, n - 1)])
 
+    @property
+    def neutral(self) -> float:
+        """The magnitude m at which the effect does nothing, or as little as it can: a current limit at the
+        amplifier's, any other parameter at its least fitted value (0; a spool lag at :data:`FIT_FLOOR`, whose phase
+        the instability run still feels at the margin of stability)."""
+        return (self.hi if self.name == "i_max" else self.lo) / self.scale
+
 
 #: A current limit is searched from this share of the largest current the runs ask for up to that current,
 #: starting from limits that cut off at least LIMIT_CUT of it.
@@ -131,6 +138,13 @@ class Candidate:
         if p.name == "i_max":
             return max(0.0, 1.0 - float(theta[j]))
         return float(theta[j])
+
+    def nesting(self, reference: Array) -> Array:
+        """θ of this candidate that acts as the one it extends does at ``reference`` (that one's θ, a prefix):
+        the magnitudes added on top at their neutral values (:attr:`FitParam.neutral`; an addition without
+        parameters, the orifice law, stays on)."""
+        extra = self.params[reference.size - N_LINEAR:]
+        return np.concatenate([reference, [p.neutral for p in extra]])
 
     def point(self, base: RigParams, theta: Array) -> Point:
         """The model at θ around the baseline ``base``."""

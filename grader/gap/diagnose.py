@@ -36,7 +36,7 @@ from grader.gap.segments import Segment, segments_of
 from grader.gap.spread import spread
 from grader.gap.separating import separating_test
 from grader.model.effects import EFFECTS
-from grader.gap.verdict import Ranking, Scored, decide, fit_gain, rank, scores
+from grader.gap.verdict import Ranking, Scored, decide, fit_gain, lookalikes, rank, scores
 
 Array = NDArray[np.float64]
 #: A verdict whose fit leaves more than this many times the floor's mean square (the reading noise's and what the
@@ -50,6 +50,17 @@ RESIDUAL_RATIO = 1.0
 SECOND_REL_GAIN, SECOND_GAIN, SECOND_STRENGTH = 0.10, 0.25, 0.06
 #: A ``none`` verdict whose linear model leaves this many times the noise's mean square searches a pair.
 NONE_GAP = 4.0
+
+
+@dataclass(frozen=True)
+class _Second:
+    """A second effect on top of the verdict: its fit, report entry and scores, and the effects (names) the data
+    cannot tell apart from it."""
+
+    state: FitState
+    candidate: SchemaCandidate
+    scored: Scored
+    lookalikes: list[str]
 
 
 @dataclass(frozen=True)
@@ -104,7 +115,7 @@ def _significant(cand: SchemaCandidate, effect: str) -> bool:
 
 def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, others: Sequence[Candidate],
             floor_nrmse: Array, before: CrossValidation, executor: Executor | None,
-            first_scored: Scored) -> tuple[FitState, SchemaCandidate, Scored] | None:
+            first_scored: Scored) -> _Second | None:
     """The best second effect on top of ``first`` if it explains clearly more than ``first`` alone (beyond the
     floor ``first`` leaves, by :data:`SECOND_GAIN`), else None; an addition whose parameter's 95 % interval
     reaches "no effect" is no second effect (it only moved the first effect's optimum). ``first`` alone is
@@ -123,11 +134,15 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
     eligible = [i for i, st in enumerate(found.states[:-1]) if _significant(built[i], st.candidate.names[-1])
                 and st.candidate.strength(st.theta) >= SECOND_STRENGTH]
     eligible.append(len(scored) - 1)
-    pick, _, _ = decide([scored[i] for i in eligible], floor_nrmse, reference=len(eligible) - 1, gain=SECOND_GAIN,
-                        rel_gain=SECOND_REL_GAIN)
-    if pick == len(eligible) - 1:
+    options = [scored[i] for i in eligible]
+    ref = len(eligible) - 1
+    pick, _, _ = decide(options, floor_nrmse, reference=ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
+    if pick == ref:
         return None
-    return found.states[eligible[pick]], built[eligible[pick]], scored[eligible[pick]]
+    alike = lookalikes(options, floor_nrmse, pick, ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
+    k = eligible[pick]
+    return _Second(found.states[k], built[k], scored[k],
+                   [found.states[eligible[i]].candidate.names[-1] for i in alike])
 
 
 def _could_pass(ends: Sequence[FitState], lengths: Sequence[int], floor_nrmse: Array,
@@ -146,7 +161,7 @@ def _could_pass(ends: Sequence[FitState], lengths: Sequence[int], floor_nrmse: A
 
 def _pair_beyond_none(objs: Sequence[RunObjective], base: baseline_mod.Baseline, found: SearchResult, rk: Ranking,
                       candidates: Sequence[Candidate], noise_nrmse: Array, sigma: float, before: CrossValidation,
-                      executor: Executor | None) -> tuple[Ranking, tuple[FitState, SchemaCandidate, Scored] | None]:
+                      executor: Executor | None) -> tuple[Ranking, _Second | None]:
     """No single effect explains the gap, yet the linear model leaves NONE_GAP times the noise's mean square
     (two effects that each alone fit no better, as a deadband beside a backlash): the effect that fits best
     with each other effect on top. A pair that explains clearly more than its first effect and than ``none``
@@ -164,7 +179,7 @@ def _pair_beyond_none(objs: Sequence[RunObjective], base: baseline_mod.Baseline,
     if extra is None:
         return rk, None
     none = scored[names.index(NONE)]
-    if decide([none, extra[2]], noise_nrmse)[0] != 1:
+    if decide([none, extra.scored], noise_nrmse)[0] != 1:
         return rk, None
     order = [k, *(i for i in rk.order if i != k)]
     return replace(rk, order=order, verdict=k, runner_up=names.index(NONE), margin=0.0, confidence=0.0, ties=[]), extra
@@ -222,16 +237,19 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
     if why:
         verdict = verdict.model_copy(update={"explanation": f"{verdict.explanation}; {why}"})
     if extra is not None:
-        state, pair, _ = extra
-        added = state.candidate.names[-1]
+        pair, added = extra.candidate, extra.state.candidate.names[-1]
         cands.append(pair)
-        y_aug = _model_y(state, runs, base)
+        y_aug = _model_y(extra.state, runs, base)
         first = cands[0].shrink / pair.shrink if pair.shrink > 0 else 1.0
         share = build.r6(min(max(first, 0.0), 1.0))
         text = (f"{verdict.explanation}; adding {added} on top explains clearly more" if alone else
                 f"no single effect explains the gap clearly, {verdict.effect} with {added} on top does")
+        test = separating_test(added, extra.lookalikes)
+        if extra.lookalikes:
+            text += f"; the data cannot tell {added} apart from {', '.join(extra.lookalikes)}: {test} would separate them"
         verdict = verdict.model_copy(update={
-            "second_effect": added, "shares": {verdict.effect: share, added: build.r6(1.0 - share)}, "explanation": text})
+            "second_effect": added, "shares": {verdict.effect: share, added: build.r6(1.0 - share)}, "explanation": text,
+            "second_indistinguishable_from": extra.lookalikes, "second_separating_test": test})
     return cands, y_aug, verdict
 
 

@@ -119,6 +119,11 @@ class Verdict(_Frozen):
     shares: dict[str, float] = Field(default_factory=dict, description="each named effect's share of the held-out shrink (sums to 1)")
     separating_test: str | None = Field(None, description="the extra test that would separate the verdict from a candidate the data cannot tell apart from it")
     explanation: str
+    second_indistinguishable_from: list[str] = Field(
+        default_factory=list, description="effects the data cannot tell apart from second_effect: each also explains "
+                                          "clearly more on top of the verdict, and fits as well")
+    second_separating_test: str | None = Field(None, description="the extra test that would separate second_effect "
+                                                                 "from the first of second_indistinguishable_from")
 
 
 class QuantizationInfo(_Frozen):

@@ -68,7 +68,9 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
     the baseline's linear coordinates (for a second effect, the first effect's optimum's), since a profile can
     lead an effect astray (a spool lag into a slower mode that then holds the fit). In a first search, a fit
     that still ends worse than ``none``, which nests in every effect at zero magnitude, starts once more from
-    ``none``'s optimum."""
+    ``none``'s optimum. In a second search, an addition that ends worse than the first alone starts once more
+    where it nests the first: the first's optimum, the addition at its neutral magnitude (a delay started at the
+    profile's magnitude can put the instability run's model in another regime, which then holds the fit)."""
     short, middle, full = (_fitter(objectives, base, w, executor) for w in (PROFILE_WINDOW, FIRST_WINDOW, None))
     states = short.profile(*grid_starts(candidates, theta0), rounds=PROFILE_ROUNDS)
     states = middle.fit(middle.rebase(states), rounds=FIRST_ROUNDS, final_jacobian=False)
@@ -76,10 +78,15 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
     lin0 = np.zeros(N_LINEAR) if theta0 is None else np.asarray(theta0[-1], dtype=float)[:N_LINEAR]
     ends = full.fit(full.rebase([*states, *_with_linear(states, range(n), lin0)]), rounds=FULL_ROUNDS)
     ends = [min(ends[k], ends[n + k], key=lambda s: s.cost) for k in range(n)]
-    ref = next((k for k, s in enumerate(ends) if s.candidate.effect == NONE), None)
-    redo = [] if theta0 is not None or ref is None else [k for k, s in enumerate(ends) if s.cost > ends[ref].cost]
+    if theta0 is None:
+        ref = next((k for k, s in enumerate(ends) if s.candidate.effect == NONE), None)
+        redo = [] if ref is None else [k for k, s in enumerate(ends) if s.cost > ends[ref].cost]
+        restarts = _with_linear(states, redo, ends[ref].theta[:N_LINEAR]) if redo else []
+    else:
+        redo = [k for k, s in enumerate(ends[:-1]) if s.cost > ends[-1].cost]
+        restarts = [replace(states[k], theta=states[k].candidate.nesting(ends[-1].theta), jac=None) for k in redo]
     if redo:
-        again = full.fit(full.rebase(_with_linear(states, redo, ends[ref].theta[:N_LINEAR])), rounds=FULL_ROUNDS)
+        again = full.fit(full.rebase(restarts), rounds=FULL_ROUNDS)
         for k, s in zip(redo, again):
             ends[k] = min(ends[k], s, key=lambda x: x.cost)
     if keep is not None:

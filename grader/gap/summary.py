@@ -144,6 +144,10 @@ def _which(d: Diagnosis, best: Candidate) -> str:
     if v.second_effect and combo is not None:
         params = ", ".join(param_text(k, p) for k, p in combo.params.items())
         text += f" On top of it, {effect_name(v.second_effect)} explains clearly more ({params})."
+        if v.second_indistinguishable_from:
+            others = ", ".join(effect_name(e) for e in v.second_indistinguishable_from)
+            text += (f" The data cannot tell {effect_name(v.second_effect)} apart from: {others}; "
+                     f"{v.second_separating_test} would separate them.")
     elif v.second_effect == "sensor_quantization":
         text += f" {_quantization(d)}"
     return text

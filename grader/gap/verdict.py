@@ -129,6 +129,18 @@ def decide(cands: Sequence[Scored], noise_nrmse: Array, weights: Array | None = 
     return best, best, e[best]
 
 
+def lookalikes(cands: Sequence[Scored], noise_nrmse: Array, pick: int, reference: int, *, gain: float = NOISE_GAIN,
+               rel_gain: float = REL_GAIN) -> list[int]:
+    """The effects the data cannot tell apart from ``pick``, an effect :func:`decide` chose over ``reference``: each
+    also explains clearly more than the reference (E > 1, in the same units) and scores within TIE of ``pick`` or fits
+    all runs as well (within TIE_FIT of the floor's mean square)."""
+    w = np.ones(noise_nrmse.size)
+    s, floor, best = scores(cands, w), _ms(noise_nrmse, w), cands[pick]
+    return [i for i, c in enumerate(cands) if i not in (pick, reference)
+            and evidence(cands[reference], c, noise_nrmse, w, gain, rel_gain) > 1.0
+            and (np.log(s[i] / s[pick]) < TIE or _ms(c.fit, w) - _ms(best.fit, w) < TIE_FIT * floor)]
+
+
 def _ties(cands: Sequence[Scored], s: Array, verdict: int, noise_nrmse: Array, w: Array | None = None) -> list[int]:
     w = np.ones(noise_nrmse.size) if w is None else w
     if cands[verdict].effect != NONE:

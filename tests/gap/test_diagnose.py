@@ -15,7 +15,7 @@ from grader.gap.diagnose import Analysis, analyse, diagnose_dataset
 from grader.gap.figures import NICE, plot_helpers
 from grader.gap.report import _render_plots, write_outputs
 from grader.gap.schema import Diagnosis, diagnosis_json, json_schema
-from grader.gap.summary import effect_name
+from grader.gap.summary import effect_name, summary
 from grader.stations import load_station
 
 from .conftest import FEW, MakeDataset
@@ -157,6 +157,14 @@ def test_two_effects_are_both_named_with_parameters_and_shares(make: MakeDataset
     assert "the augmented model adds " + " + ".join(
         effect_name(e) for e in pair.effect.split("+")) in page
     assert "On top of it" in page and "shares of that shrink" in page
+    # an addition the data cannot tell apart from the second effect is named with the test that would separate them
+    second = d.verdict.second_effect or ""
+    assert (d.verdict.second_separating_test is None) == (d.verdict.second_indistinguishable_from == [])
+    assert not {d.verdict.effect, second} & set(d.verdict.second_indistinguishable_from)
+    alike = d.model_copy(update={"verdict": d.verdict.model_copy(update={
+        "second_indistinguishable_from": ["valve_hysteresis"], "second_separating_test": "a slow triangle wave"})})
+    assert (f"The data cannot tell {effect_name(second)} apart from: {effect_name('valve_hysteresis')}; a slow "
+            "triangle wave would separate them.") in summary(alike)
 
 
 def test_a_valve_saturating_early_keeps_the_oscillations_stiffness(make: MakeDataset, tmp_path: Path) -> None:

@@ -7,10 +7,11 @@ import numpy as np
 from grader.datasets import load
 from grader.gap import baseline
 from grader.gap.backend import Backend
-from grader.gap.candidates import make_candidates
+from grader.gap.candidates import combine, make_candidates
 from grader.gap.fit import BatchFitter, grid_starts
 from grader.gap.objective import objective
 from grader.gap.runs import prepare_runs, truncated
+from grader.gap.search import search, second_effect
 
 from .conftest import MakeDataset
 
@@ -36,3 +37,34 @@ def test_jacobians_end_at_the_final_theta_and_skipping_the_last_changes_no_step(
         assert b.jac is None or np.array_equal(b.jac, a.jac)  # None only where the last step moved θ
     assert any(not np.array_equal(a.theta, s.theta) for a, s in zip(with_jac, states))  # the fit did move
     assert all(a.cost <= s.cost for a, s in zip(with_jac, states))  # and never up
+
+
+def test_an_addition_at_its_nesting_theta_simulates_as_the_first_effect_alone(make: MakeDataset) -> None:
+    """Every addition with a magnitude, at the first's θ and its own neutral magnitude, is the first effect alone:
+    the same positions, bit for bit. (A spool lag's neutral, its least fitted time constant of 0.1 ms, is not: at
+    the margin of stability the instability run feels even that phase lag.)"""
+    ds = load(make("coulomb_friction", {"coulomb_friction": {"Fc": 2.0}}))
+    runs = [truncated(r, 0.3) for r in prepare_runs(ds, ds.given["sample_time"])]
+    base = baseline.choose(ds, runs, key=None, implied_kfb=None).params
+    cands = {c.effect: c for c in make_candidates(base)}
+    first = cands["coulomb_friction"]
+    theta = np.array([0.05, -0.2, 0.01, 0.3])
+    pairs = [combine(first, c) for name, c in cands.items() if c.params and name not in (first.effect, "valve_dynamics")]
+    assert len(pairs) == 4
+    ys = Backend(runs).all_runs([first.point(base, theta), *(p.point(base, p.nesting(theta)) for p in pairs)])
+    for pair, y in zip(pairs, ys[1:]):
+        assert all(np.array_equal(a, b) for a, b in zip(y, ys[0])), pair.effect
+
+
+def test_no_addition_ends_a_second_search_worse_than_the_first_effect_alone(make: MakeDataset) -> None:
+    """Each addition nests the first effect (at its neutral magnitude), so none ends the pair search fitting worse than
+    the first alone refitted there: one that does is started once more from where it nests the first."""
+    ds = load(make("coulomb_friction", {"coulomb_friction": {"Fc": 2.0}}))
+    runs = [truncated(r, 0.4) for r in prepare_runs(ds, ds.given["sample_time"])]
+    base = baseline.choose(ds, runs, key=None, implied_kfb=None).params
+    cands = {c.effect: c for c in make_candidates(base, ["coulomb_friction", "sampling_delay", "valve_saturation"])}
+    objs = [objective(r) for r in runs]
+    first = search(objs, base, [cands["coulomb_friction"]]).states[0]
+    found = second_effect(objs, base, first, [cands["sampling_delay"], cands["valve_saturation"]])
+    assert [s.candidate.effect for s in found.states][-1] == "coulomb_friction"
+    assert all(s.cost <= found.states[-1].cost for s in found.states[:-1])

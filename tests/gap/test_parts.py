@@ -15,7 +15,7 @@ from grader.gap.fit import FitState
 from grader.gap.noise import adc_step, estimate, reading_noise
 from grader.gap.runs import GapRun
 from grader.gap.segments import segments_of, shares
-from grader.gap.verdict import Scored, decide, rank
+from grader.gap.verdict import Scored, decide, lookalikes, rank
 from grader.model.params import Controller
 from grader.stations import load_station
 
@@ -99,6 +99,22 @@ def test_near_equal_effects_are_reported_as_indistinguishable() -> None:
     rk = rank(cands, NOISE)
     assert cands[rk.verdict].effect == "sampling_delay"
     assert [cands[i].effect for i in rk.ties] == ["valve_dynamics"]
+
+
+@pytest.mark.parametrize(("other", "alike"), [
+    (_scored("p+valve_dynamics", 0.0151, 0.0121), True),  # scores within TIE of the pick
+    (_scored("p+valve_dynamics", 0.0190, 0.0125), True),  # held out worse, fits all runs as well (TIE_FIT)
+    (_scored("p+valve_dynamics", 0.0190, 0.0190), False),  # clearly worse on both
+    (_scored("p+valve_dynamics", 0.0298, 0.0121), False),  # fits as well, but explains nothing held out (E < 1)
+])
+def test_a_second_effect_is_reported_with_the_additions_the_data_cannot_tell_apart_from_it(other: Scored,
+                                                                                         alike: bool) -> None:
+    """On top of the first effect alone (per-run NRMSE 0.03, floor 0.01), a delay is picked; another addition is a
+    lookalike only if it also explains clearly more than the first alone and scores or fits as well as the delay."""
+    cands = [_scored("p+sampling_delay", 0.015, 0.012), other, _scored("p", 0.03, 0.03)]
+    pick, _, _ = decide(cands, NOISE, reference=2, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
+    assert pick == 0
+    assert lookalikes(cands, NOISE, pick, 2, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN) == ([1] if alike else [])
 
 
 @pytest.mark.parametrize("bits", [12, 14])
