@@ -141,8 +141,9 @@ class Candidate:
 
     def nesting(self, reference: Array) -> Array:
         """θ of this candidate that acts as the one it extends does at ``reference`` (that one's θ, a prefix):
-        the magnitudes added on top at their neutral values (:attr:`FitParam.neutral`; an addition without
-        parameters, the orifice law, stays on)."""
+        the magnitudes added on top at their neutral values (:attr:`FitParam.neutral`). Exactly so, except for a
+        spool lag (nearly: its least fitted time constant) and the orifice law (no parameter: it stays on)."""
+        assert N_LINEAR <= reference.size <= self.n_theta, "the reference must be a prefix of this θ"
         extra = self.params[reference.size - N_LINEAR:]
         return np.concatenate([reference, [p.neutral for p in extra]])
 

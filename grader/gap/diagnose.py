@@ -54,13 +54,18 @@ NONE_GAP = 4.0
 
 @dataclass(frozen=True)
 class _Second:
-    """A second effect on top of the verdict: its fit, report entry and scores, and the effects (names) the data
-    cannot tell apart from it."""
+    """A second effect on top of the verdict: its fit, report entry and scores, and the additions the data cannot
+    tell apart from it (each effect's name and the scores of its pair)."""
 
     state: FitState
     candidate: SchemaCandidate
     scored: Scored
-    lookalikes: list[str]
+    lookalikes: tuple[tuple[str, Scored], ...]
+
+    @property
+    def alike(self) -> list[str]:
+        """The lookalikes' names."""
+        return [name for name, _ in self.lookalikes]
 
 
 @dataclass(frozen=True)
@@ -142,7 +147,7 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
     alike = lookalikes(options, floor_nrmse, pick, ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
     k = eligible[pick]
     return _Second(found.states[k], built[k], scored[k],
-                   [found.states[eligible[i]].candidate.names[-1] for i in alike])
+                   tuple((found.states[eligible[i]].candidate.names[-1], options[i]) for i in alike))
 
 
 def _could_pass(ends: Sequence[FitState], lengths: Sequence[int], floor_nrmse: Array,
@@ -182,7 +187,9 @@ def _pair_beyond_none(objs: Sequence[RunObjective], base: baseline_mod.Baseline,
     if decide([none, extra.scored], noise_nrmse)[0] != 1:
         return rk, None
     order = [k, *(i for i in rk.order if i != k)]
-    return replace(rk, order=order, verdict=k, runner_up=names.index(NONE), margin=0.0, confidence=0.0, ties=[]), extra
+    alike = tuple((n, s) for n, s in extra.lookalikes if decide([none, s], noise_nrmse)[0] == 1)  # the same bar
+    return (replace(rk, order=order, verdict=k, runner_up=names.index(NONE), margin=0.0, confidence=0.0, ties=[]),
+            replace(extra, lookalikes=alike))
 
 
 def _verdict(rk: Ranking, names: list[str]) -> Verdict:
@@ -244,12 +251,12 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
         share = build.r6(min(max(first, 0.0), 1.0))
         text = (f"{verdict.explanation}; adding {added} on top explains clearly more" if alone else
                 f"no single effect explains the gap clearly, {verdict.effect} with {added} on top does")
-        test = separating_test(added, extra.lookalikes)
-        if extra.lookalikes:
-            text += f"; the data cannot tell {added} apart from {', '.join(extra.lookalikes)}: {test} would separate them"
+        test = separating_test(added, extra.alike)
+        if extra.alike:
+            text += f"; the data cannot tell {added} apart from {', '.join(extra.alike)}: {test} would separate them"
         verdict = verdict.model_copy(update={
-            "second_effect": added, "shares": {verdict.effect: share, added: build.r6(1.0 - share)}, "explanation": text,
-            "second_indistinguishable_from": extra.lookalikes, "second_separating_test": test})
+            "second_effect": added, "shares": {verdict.effect: share, added: build.r6(1.0 - share)},
+            "explanation": text, "second_indistinguishable_from": extra.alike, "second_separating_test": test})
     return cands, y_aug, verdict
 
 

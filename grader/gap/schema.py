@@ -121,7 +121,7 @@ class Verdict(_Frozen):
     explanation: str
     second_indistinguishable_from: list[str] = Field(
         default_factory=list, description="effects the data cannot tell apart from second_effect: each also explains "
-                                          "clearly more on top of the verdict, and fits as well")
+                                          "clearly more on top of the verdict, and scores or fits as well")
     second_separating_test: str | None = Field(None, description="the extra test that would separate second_effect "
                                                                  "from the first of second_indistinguishable_from")
 
