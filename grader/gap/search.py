@@ -63,8 +63,7 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
     """Fit ``candidates`` around ``base`` on the runs of ``objectives`` and cross-validate them (see module
     docstring); ``theta0`` are the profile's starting points (default: the baseline, zero magnitudes); with them,
     the search is a second search (:func:`second_effect`): the last candidate is the first effect alone, which
-    every other one extends. With
-    ``keep``, only the fits it keeps are cross-validated and returned, in order.
+    every other one extends. With ``keep``, only the fits it keeps are cross-validated and returned, in order.
 
     Every whole-run fit starts twice, keeping the better end: from where the short windows led it and from
     the baseline's linear coordinates (for a second effect, the first effect's optimum's), since a profile can
