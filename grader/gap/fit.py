@@ -100,22 +100,24 @@ class BatchFitter:
             out.append(np.clip(np.nan_to_num(np.concatenate(parts), nan=RES_CAP), -RES_CAP, RES_CAP))
         return out
 
-    def _line(self, grid: list[tuple[Candidate, Array]]) -> list[FitState]:
-        """Each (candidate, θ) with the best Kce of :data:`KCE_LINE` (one batched evaluation)."""
+    def line(self, grid: Sequence[tuple[Candidate, Array]], offsets: Sequence[float] = KCE_LINE,
+             n_free: int | None = N_LINEAR) -> list[FitState]:
+        """Each (candidate, θ) with ln Kce moved by the best of ``offsets`` (one batched evaluation on this fitter's
+        runs), as a state whose first ``n_free`` coordinates will move (None: all)."""
         every = tuple(range(len(self.runs)))
-        jobs = [(c, th + np.array([0.0, dk] + [0.0] * (th.size - 2)), every) for c, th in grid for dk in KCE_LINE]
+        jobs = [(c, th + np.array([0.0, dk] + [0.0] * (th.size - 2)), every) for c, th in grid for dk in offsets]
         res = self.residuals(jobs)
         out = []
         for k in range(len(grid)):
-            j = min(range(len(KCE_LINE)), key=lambda i: sumsq(res[k * len(KCE_LINE) + i]))
-            c, th, _ = jobs[k * len(KCE_LINE) + j]
-            out.append(FitState(c, every, th, res[k * len(KCE_LINE) + j], n_free=N_LINEAR))
+            j = min(range(len(offsets)), key=lambda i: sumsq(res[k * len(offsets) + i]))
+            c, th, _ = jobs[k * len(offsets) + j]
+            out.append(FitState(c, every, th, res[k * len(offsets) + j], n_free=n_free))
         return out
 
     def profile(self, starts: Sequence[tuple[Candidate, Array]], owner: Sequence[int], *, rounds: int) -> list[FitState]:
         """The linear parameters fitted at each start (its magnitudes held; Kce from the best of a coarse
         line first); the best start of each owner is returned, ready to fit all coordinates."""
-        states = self.refine(self._line(list(starts)), rounds=rounds, dampings=(1.0,), final_jacobian=False)
+        states = self.refine(self.line(list(starts)), rounds=rounds, dampings=(1.0,), final_jacobian=False)
         best: dict[int, FitState] = {}
         for s, k in zip(states, owner):
             if k not in best or s.cost < best[k].cost:

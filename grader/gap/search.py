@@ -8,6 +8,13 @@ profile (β/Vt and Kce fitted at each magnitude of a grid over the effect's real
 range) on the runs' first :data:`PROFILE_WINDOW` seconds after their command, then all
 coordinates on their first :data:`FIRST_WINDOW` seconds, then on the whole runs; then
 leave-one-run-out cross-validation.
+
+Where the instability run's oscillation grows slowly toward its limit, its growth hangs on the
+loop's damping within a per cent of Kce: a model a little too damped decays and costs the whole
+oscillation, and there the objective is flat, so Levenberg–Marquardt cannot climb back. A fit that
+matched the first seconds and ends far worse on the whole runs (:data:`CLIFF`) has fallen off that
+cliff; it starts once more from its short-window end with ln Kce moved to the best of a fine line
+(:data:`CLIFF_LINE`), evaluated on the whole runs.
 """
 
 from __future__ import annotations
@@ -29,6 +36,10 @@ from grader.model.params import RigParams
 Array = NDArray[np.float64]
 PROFILE_WINDOW, FIRST_WINDOW = 0.25, 0.5  # [s] after each run's command, in the first stages
 PROFILE_ROUNDS, FIRST_ROUNDS, FULL_ROUNDS = 3, 3, 2
+#: A whole-run fit ending at more than CLIFF times the cost its start had on the first FIRST_WINDOW seconds fell off
+#: the instability run's cliff; it is started again from that start's best ln Kce on CLIFF_LINE (module docstring).
+CLIFF = 10.0
+CLIFF_LINE = tuple(float(x) for x in np.round(np.arange(-0.2, 0.2001, 0.01), 2))
 
 
 @dataclass(frozen=True)
@@ -71,7 +82,9 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
     that still ends worse than ``none``, which nests in every effect at zero magnitude, starts once more from
     ``none``'s optimum. In a second search, an addition that ends worse than the first alone starts once more
     where it nests the first: the first's optimum, the addition at its neutral magnitude (a delay started at the
-    profile's magnitude can put the instability run's model in another regime, which then holds the fit)."""
+    profile's magnitude can put the instability run's model in another regime, which then holds the fit). Before
+    both, a fit that fell off the instability run's cliff starts once more from a fine line in ln Kce (module
+    docstring)."""
     short, middle, full = (_fitter(objectives, base, w, executor) for w in (PROFILE_WINDOW, FIRST_WINDOW, None))
     states = short.profile(*grid_starts(candidates, theta0), rounds=PROFILE_ROUNDS)
     states = middle.fit(middle.rebase(states), rounds=FIRST_ROUNDS, final_jacobian=False)
@@ -79,6 +92,11 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
     lin0 = np.zeros(N_LINEAR) if theta0 is None else np.asarray(theta0[-1], dtype=float)[:N_LINEAR]
     ends = full.fit(full.rebase([*states, *_with_linear(states, range(n), lin0)]), rounds=FULL_ROUNDS)
     ends = [min(ends[k], ends[n + k], key=lambda s: s.cost) for k in range(n)]
+    cliff = [k for k in range(n) if ends[k].cost > CLIFF * states[k].cost]
+    if cliff:
+        lined = full.line([(states[k].candidate, states[k].theta) for k in cliff], CLIFF_LINE, n_free=None)
+        for k, s in zip(cliff, full.fit(full.rebase(lined), rounds=FULL_ROUNDS)):
+            ends[k] = min(ends[k], s, key=lambda x: x.cost)
     if theta0 is None:
         ref = next((k for k, s in enumerate(ends) if s.candidate.effect == NONE), None)
         redo = [] if ref is None else [k for k, s in enumerate(ends) if s.cost > ends[ref].cost]

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import math
+from dataclasses import replace
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +15,8 @@ from grader.cli import main
 from grader.datasets import load
 from grader.gap.bench import BenchConfig, Case, make_case_dataset
 from grader.gap.bench_report import render
-from grader.gap.bench_run import tasks
+from grader.gap import search
+from grader.gap.bench_run import Task, tasks
 from grader.gap.diagnose import analyse
 from grader.gap.evidence import Friction, viscous
 from grader.gap.noise import Noise
@@ -148,10 +152,16 @@ def test_a_benchmark_dataset_without_the_friction_test_has_no_friction_file_and_
     assert {"calibration.csv", "flow.csv", "instability.csv"} <= {p.name for p in folder.iterdir()}
 
 
+@cache
+def _seed_300_plan() -> tuple[Task, ...]:
+    return tuple(tasks(BenchConfig(n=25, pairs=60, seed=300, friction_test=False), Path("case")))
+
+
 def _seed_300_case(index: int, tmp_path: Path) -> tuple[str, Diagnosis]:
     """Benchmark run A's dataset ``index`` (seed 300, no friction test, from the solve_ivp path), rebuilt and
     diagnosed: its withheld effects and the diagnosis."""
-    task = tasks(BenchConfig(n=25, pairs=60, seed=300, friction_test=False), tmp_path)[index]
+    task = _seed_300_plan()[index]
+    task = replace(task, folder=tmp_path / task.folder.name)
     make_case_dataset(task.station, task.truth, task.folder, task.seed, friction_test=False)
     return task.label, analyse(task.folder).diagnosis
 
@@ -175,3 +185,25 @@ def test_a_weak_second_effect_is_named_once_it_fits_clearly_better(tmp_path: Pat
     label, d = _seed_300_case(298, tmp_path)
     assert set(label.split("+")) == {"sampling_delay", "valve_hysteresis"}
     assert (d.verdict.effect, d.verdict.second_effect) == ("valve_hysteresis", "sampling_delay")
+
+
+def test_a_fit_that_falls_off_the_instability_runs_cliff_starts_again_from_a_line_in_kce(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Benchmark case 192 of seed 300 (Coulomb friction of 1.3 lbf): the Coulomb fit matches the runs' first half
+    second, but on the whole runs its instability oscillation dies out (cost 0.0037 against 0.00024), where the
+    objective is flat. Started again from a fine line in ln Kce it finds the valley (0.00015) and Coulomb friction
+    is the verdict; without that restart, the verdict was a deadband."""
+    label, d = _seed_300_case(192, tmp_path / "with")
+    assert label == "coulomb_friction"
+    assert (d.verdict.effect, d.verdict.second_effect) == ("coulomb_friction", None)
+    monkeypatch.setattr(search, "CLIFF", math.inf)
+    assert _seed_300_case(192, tmp_path / "without")[1].verdict.effect == "valve_deadband"
+
+
+def test_a_pair_that_falls_off_the_cliff_is_named_once_started_again(tmp_path: Path) -> None:
+    """Benchmark case 300 of seed 300 (a 1.9 mA deadband and a 0.99 ms delay): the delay added on top ends the whole
+    runs at 0.059 from 5e-5 on the first half second, the deadband alone at 0.0007; from the line in ln Kce it ends
+    at 0.00014 and both effects are named."""
+    label, d = _seed_300_case(300, tmp_path)
+    assert set(label.split("+")) == {"valve_deadband", "sampling_delay"}
+    assert (d.verdict.effect, d.verdict.second_effect) == ("valve_deadband", "sampling_delay")
