@@ -100,7 +100,7 @@ class BatchFitter:
             out.append(np.clip(np.nan_to_num(np.concatenate(parts), nan=RES_CAP), -RES_CAP, RES_CAP))
         return out
 
-    def line(self, grid: Sequence[tuple[Candidate, Array]], offsets: Sequence[float] = KCE_LINE,
+    def line(self, grid: Sequence[tuple[Candidate, Array]], *, offsets: Sequence[float] = KCE_LINE,
              n_free: int | None = N_LINEAR) -> list[FitState]:
         """Each (candidate, θ) with ln Kce moved by the best of ``offsets`` (one batched evaluation on this fitter's
         runs), as a state whose first ``n_free`` coordinates will move (None: all)."""

@@ -11,10 +11,10 @@ leave-one-run-out cross-validation.
 
 Where the instability run's oscillation grows slowly toward its limit, its growth hangs on the
 loop's damping within a per cent of Kce: a model a little too damped decays and costs the whole
-oscillation, and there the objective is flat, so Levenberg–Marquardt cannot climb back. A fit that
-matched the first seconds and ends far worse on the whole runs (:data:`CLIFF`) has fallen off that
-cliff; it starts once more from its short-window end with ln Kce moved to the best of a fine line
-(:data:`CLIFF_LINE`), evaluated on the whole runs.
+oscillation, and there the objective is flat, so Levenberg–Marquardt cannot climb back. A fit whose
+whole-run end costs more than :data:`CLIFF` times what its start cost on the first
+:data:`FIRST_WINDOW` seconds has fallen off that cliff; it starts once more from that start with
+ln Kce moved to the best of a fine line (:data:`CLIFF_LINE`), evaluated on the whole runs.
 """
 
 from __future__ import annotations
@@ -36,10 +36,11 @@ from grader.model.params import RigParams
 Array = NDArray[np.float64]
 PROFILE_WINDOW, FIRST_WINDOW = 0.25, 0.5  # [s] after each run's command, in the first stages
 PROFILE_ROUNDS, FIRST_ROUNDS, FULL_ROUNDS = 3, 3, 2
-#: A whole-run fit ending at more than CLIFF times the cost its start had on the first FIRST_WINDOW seconds fell off
-#: the instability run's cliff; it is started again from that start's best ln Kce on CLIFF_LINE (module docstring).
+#: A whole-run fit ending at more than CLIFF times the cost (Σ over runs of NRMSE², dimensionless) its start had on
+#: the first FIRST_WINDOW seconds fell off the instability run's cliff; it is started again from that start with
+#: ln Kce moved by the best offset of CLIFF_LINE (Kce within ±20 % in steps of 1 %; module docstring).
 CLIFF = 10.0
-CLIFF_LINE = tuple(float(x) for x in np.round(np.arange(-0.2, 0.2001, 0.01), 2))
+CLIFF_LINE = tuple(round(0.01 * i, 2) for i in range(-20, 21))
 
 
 @dataclass(frozen=True)
@@ -94,7 +95,7 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
     ends = [min(ends[k], ends[n + k], key=lambda s: s.cost) for k in range(n)]
     cliff = [k for k in range(n) if ends[k].cost > CLIFF * states[k].cost]
     if cliff:
-        lined = full.line([(states[k].candidate, states[k].theta) for k in cliff], CLIFF_LINE, n_free=None)
+        lined = full.line([(states[k].candidate, states[k].theta) for k in cliff], offsets=CLIFF_LINE, n_free=None)
         for k, s in zip(cliff, full.fit(full.rebase(lined), rounds=FULL_ROUNDS)):
             ends[k] = min(ends[k], s, key=lambda x: x.cost)
     if theta0 is None:

@@ -1,4 +1,4 @@
-"""The JSON API (httpx through FastAPI's TestClient): same results as ``grader check``, key-safe, hostile-input safe."""
+"""The JSON API (httpx2 or httpx through FastAPI's TestClient): same results as ``grader check``, key-safe, hostile-input safe."""
 
 from __future__ import annotations
 
