@@ -47,6 +47,9 @@ TIE = 0.05
 TIE_FIT = 0.25
 BOOTSTRAP = 400
 VISIBLE = 0.1  # fitted strength (fraction of the realistic range's top) that would show
+#: An effect fitted below this strength (fraction of its realistic range's top) does not act: it is ``none`` at
+#: another optimum of the linear parameters (a Coulomb level of 0 lbf), and it is neither the verdict nor a lookalike.
+ACTING = 1e-3
 MAX_MARGIN = 10.0
 #: Effects whose held-out scores lie within this log ratio of the best are ranked by their all-runs fit: the
 #: fit is the likelihood of models of equal size, while the held-out score adds the folds' refitting noise
@@ -112,7 +115,7 @@ def decide(cands: Sequence[Scored], noise_nrmse: Array, weights: Array | None = 
     ``none``; for a second effect, the first alone, with ``noise_nrmse`` the floor it leaves and a larger
     ``gain``), the best (module docstring); without one, the reference, and the effect that came closest.
     An effect whose fold refits happen to predict the left-out runs better while it fits all runs no better
-    than the reference is no candidate for the verdict."""
+    than the reference is no candidate for the verdict, nor is one fitted at no strength (:data:`ACTING`)."""
     w = np.ones(noise_nrmse.size) if weights is None else weights
     s = scores(cands, w)
     i_none = next(i for i, c in enumerate(cands) if c.effect == NONE) if reference is None else reference
@@ -120,9 +123,9 @@ def decide(cands: Sequence[Scored], noise_nrmse: Array, weights: Array | None = 
     if not effects:
         return i_none, i_none, 0.0
     e = {i: evidence(cands[i_none], cands[i], noise_nrmse, w, gain, rel_gain) for i in effects}
-    ok = [i for i in effects if e[i] > 1.0]
+    ok = [i for i in effects if e[i] > 1.0 and cands[i].strength >= ACTING]
     if not ok:
-        closest = max(effects, key=lambda i: e[i])
+        closest = max([i for i in effects if cands[i].strength >= ACTING] or effects, key=lambda i: e[i])
         return i_none, closest, e[closest]
     top = min(ok, key=lambda i: s[i])
     best = min((i for i in ok if np.log(s[i] / s[top]) < CLOSE), key=lambda i: _ms(cands[i].fit, w))
@@ -136,7 +139,7 @@ def lookalikes(cands: Sequence[Scored], noise_nrmse: Array, pick: int, reference
     all runs as well (within TIE_FIT of the floor's mean square)."""
     w = np.ones(noise_nrmse.size)
     s, floor, best = scores(cands, w), _ms(noise_nrmse, w), cands[pick]
-    return [i for i, c in enumerate(cands) if i not in (pick, reference)
+    return [i for i, c in enumerate(cands) if i not in (pick, reference) and c.strength >= ACTING
             and evidence(cands[reference], c, noise_nrmse, w, gain, rel_gain) > 1.0
             and (np.log(s[i] / s[pick]) < TIE or _ms(c.fit, w) - _ms(best.fit, w) < TIE_FIT * floor)]
 
@@ -145,7 +148,7 @@ def _ties(cands: Sequence[Scored], s: Array, verdict: int, noise_nrmse: Array, w
     w = np.ones(noise_nrmse.size) if w is None else w
     if cands[verdict].effect != NONE:
         v, floor = cands[verdict], _ms(noise_nrmse, w)
-        return [i for i, c in enumerate(cands) if i != verdict and c.effect != NONE
+        return [i for i, c in enumerate(cands) if i != verdict and c.effect != NONE and c.strength >= ACTING
                 and (np.log(s[i] / s[verdict]) < TIE or _ms(c.fit, w) - _ms(v.fit, w) < TIE_FIT * floor)]
     none, floor = cands[verdict], NOISE_GAIN * _ms(noise_nrmse, w)
     return [i for i, c in enumerate(cands) if i != verdict and c.strength >= VISIBLE
@@ -187,7 +190,7 @@ def _confidence(cands: Sequence[Scored], noise_nrmse: Array, verdict: int, seed:
         return 1.0
     is_none = np.arange(len(cands)) == i_none
     e = np.minimum((1.0 - held / held[:, [i_none]]) / REL_GAIN, (fit[:, [i_none]] - fit) / (NOISE_GAIN * floor[:, None]))
-    ok = (e > 1.0) & ~is_none
+    ok = (e > 1.0) & ~is_none & (np.array([c.strength for c in cands]) >= ACTING)
     top = np.min(np.where(ok, s, np.inf), axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         close = ok & (np.log(s / top[:, None]) < CLOSE)
@@ -195,6 +198,6 @@ def _confidence(cands: Sequence[Scored], noise_nrmse: Array, verdict: int, seed:
     same = np.where(ok.any(axis=1), best, i_none) == verdict
     if cands[verdict].effect == NONE:
         return float(np.sum(same)) / BOOTSTRAP
-    others = np.array([i != verdict and c.effect != NONE for i, c in enumerate(cands)])
+    others = np.array([i != verdict and c.effect != NONE and c.strength >= ACTING for i, c in enumerate(cands)])
     tied = (np.log(s / s[:, [verdict]]) < TIE) | (fit - fit[:, [verdict]] < TIE_FIT * floor[:, None])
     return float(np.sum(same & ~np.any(tied & others, axis=1))) / BOOTSTRAP

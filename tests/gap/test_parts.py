@@ -94,6 +94,21 @@ def test_an_effect_that_fits_no_better_than_none_is_not_a_verdict() -> None:
     assert [cands[i].effect for i in rk.ties] == ["viscous_friction"]  # fitted visibly, explains nothing
 
 
+@pytest.mark.parametrize(("strength", "verdict"), [(0.0, "valve_saturation"), (5e-4, "valve_saturation"),
+                                                  (0.02, "coulomb_friction")])
+def test_an_effect_fitted_at_no_strength_is_neither_verdict_nor_lookalike(strength: float, verdict: str) -> None:
+    """Benchmark seed 300, case 0305 (a 2 ms delay and a current limit): Coulomb friction fitted at Fc = 0, i.e. no
+    friction, beat ``none``'s poorer optimum and scored best held out; it was the verdict, tied with everything."""
+    cands = [_scored("none", 0.03, 0.044, 0, 0.0), _scored("coulomb_friction", 0.009, 0.042, strength=strength),
+             _scored("valve_saturation", 0.012, 0.016), _scored("sampling_delay", 0.0125, 0.038)]
+    rk = rank(cands, NOISE)
+    assert cands[rk.verdict].effect == verdict
+    acting = strength >= 1e-3
+    assert ("coulomb_friction" in [cands[i].effect for i in rk.ties]) == (acting and verdict != "coulomb_friction")
+    pick, _, _ = decide(cands, NOISE)
+    assert (1 in lookalikes(cands, NOISE, pick, 0)) == (acting and pick != 1)
+
+
 def test_near_equal_effects_are_reported_as_indistinguishable() -> None:
     cands = [_scored("none", 0.2, 0.2, 0, 0.0), _scored("sampling_delay", 0.0200, 0.02), _scored("valve_dynamics", 0.0203, 0.02)]
     rk = rank(cands, NOISE)
