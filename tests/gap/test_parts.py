@@ -167,3 +167,36 @@ def test_a_second_effect_left_out_of_cross_validation_could_not_have_been_picked
     for reference in (Scored("coulomb_friction", refit, refit, 1), earlier_scored):
         pick, _, _ = decide([perfect, reference], floor, reference=1, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
         assert keep[0] or pick == 1
+
+
+@pytest.mark.parametrize("fc", [0.0, 0.3])
+def test_a_pair_beyond_none_starts_from_an_effect_that_acts(monkeypatch: pytest.MonkeyPatch, fc: float) -> None:
+    """With no single effect clearly better than ``none``, the pair search starts from the effect that fits all runs
+    best; Coulomb friction fitted at Fc = 0 fits best here but is ``none`` itself, with nothing to add to, so the
+    search starts from the deadband instead (a Coulomb level of 0.3 of its range's top acts, and is the start)."""
+    import grader.gap.diagnose as diag
+    from grader.gap.baseline import Baseline
+    from grader.gap.crossval import CrossValidation
+    from grader.gap.search import SearchResult
+    from grader.gap.verdict import Ranking
+
+    base = load_station("default").params()
+    cands = {c.effect: c for c in make_candidates(base, ["coulomb_friction", "valve_deadband"])}
+    lin = np.zeros(3)
+    states = [FitState(cands["none"], tuple(range(6)), lin, np.full(6, 0.05)),
+              FitState(cands["coulomb_friction"], tuple(range(6)), np.append(lin, fc), np.full(6, 0.02)),
+              FitState(cands["valve_deadband"], tuple(range(6)), np.append(lin, 0.2), np.full(6, 0.03))]
+    cv = CrossValidation(np.full(6, 0.05), np.zeros((6, 4)))
+    found = SearchResult(states, [cv] * 3, [1] * 6)
+    firsts: list[str] = []
+
+    def second(objs, base, first, others, floor, before, executor, first_scored):  # type: ignore[no-untyped-def]
+        firsts.append(first.candidate.effect)
+        return None
+
+    monkeypatch.setattr(diag, "_second", second)
+    monkeypatch.setattr(diag, "spread", lambda objs, point, sigma: np.zeros(6))
+    rk = Ranking([0, 1, 2], np.ones(3), 0, 1, 0.0, 1.0, [])
+    diag._pair_beyond_none([], Baseline(base, "test", "constructed"), found, rk, list(cands.values()), np.full(6, 0.01), 1e-4,
+                           cv, None)
+    assert firsts == ["valve_deadband" if fc == 0.0 else "coulomb_friction"]
