@@ -65,7 +65,7 @@ class Scored:
     heldout: Array
     fit: Array
     k_extra: int
-    strength: float = 0.0
+    strength: float  # fitted strength of the (last added) effect, a fraction of its realistic range's top
 
 
 @dataclass(frozen=True)

@@ -160,11 +160,11 @@ def test_a_second_effect_left_out_of_cross_validation_could_not_have_been_picked
     cands = {c.effect: c for c in make_candidates(load_station("default").params())}
     first, added = cands["coulomb_friction"], combine(cands["coulomb_friction"], cands["valve_deadband"])
     ends = [FitState(c, (0,), np.zeros(c.n_theta), res=f.copy()) for c, f in ((added, combo), (first, refit))]
-    earlier_scored = Scored("coulomb_friction", earlier, earlier, 1)
+    earlier_scored = Scored("coulomb_friction", earlier, earlier, 1, 0.5)
     keep = _could_pass(ends, [1] * 6, floor, earlier_scored)
     assert keep[-1]
-    perfect = Scored("coulomb_friction+valve_deadband", np.full(6, 1e-9), combo, 2)
-    for reference in (Scored("coulomb_friction", refit, refit, 1), earlier_scored):
+    perfect = Scored("coulomb_friction+valve_deadband", np.full(6, 1e-9), combo, 2, 0.5)  # an addition that acts
+    for reference in (Scored("coulomb_friction", refit, refit, 1, 0.5), earlier_scored):
         pick, _, _ = decide([perfect, reference], floor, reference=1, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
         assert keep[0] or pick == 1
 
