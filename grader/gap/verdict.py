@@ -122,10 +122,13 @@ def decide(cands: Sequence[Scored], noise_nrmse: Array, weights: Array | None = 
     effects = [i for i in range(len(cands)) if i != i_none]
     if not effects:
         return i_none, i_none, 0.0
-    e = {i: evidence(cands[i_none], cands[i], noise_nrmse, w, gain, rel_gain) for i in effects}
-    ok = [i for i in effects if e[i] > 1.0 and cands[i].strength >= ACTING]
+    acting = [i for i in effects if cands[i].strength >= ACTING]
+    if not acting:  # every effect fitted at no strength: each is the reference itself
+        return i_none, i_none, 0.0
+    e = {i: evidence(cands[i_none], cands[i], noise_nrmse, w, gain, rel_gain) for i in acting}
+    ok = [i for i in acting if e[i] > 1.0]
     if not ok:
-        closest = max([i for i in effects if cands[i].strength >= ACTING] or effects, key=lambda i: e[i])
+        closest = max(acting, key=lambda i: e[i])
         return i_none, closest, e[closest]
     top = min(ok, key=lambda i: s[i])
     best = min((i for i in ok if np.log(s[i] / s[top]) < CLOSE), key=lambda i: _ms(cands[i].fit, w))
@@ -156,11 +159,12 @@ def _ties(cands: Sequence[Scored], s: Array, verdict: int, noise_nrmse: Array, w
 
 
 def rank(cands: Sequence[Scored], noise_nrmse: Array, *, seed: int = 0) -> Ranking:
-    """Order (verdict first, then by score), margin, run-bootstrap confidence and ties."""
+    """Order (verdict first, then by score), margin, run-bootstrap confidence and ties; the runner-up is the best
+    scoring of the others that is ``none`` or acts (:data:`ACTING`)."""
     s = scores(cands)
     verdict, _, e = decide(cands, noise_nrmse)
     rest = [int(i) for i in np.argsort(s, kind="stable") if i != verdict]
-    runner = rest[0] if rest else None
+    runner = next((i for i in rest if cands[i].effect == NONE or cands[i].strength >= ACTING), None)
     if cands[verdict].effect == NONE:
         margin = float(-np.log(max(e, np.exp(-MAX_MARGIN))))
     else:

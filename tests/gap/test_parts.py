@@ -15,7 +15,7 @@ from grader.gap.fit import FitState
 from grader.gap.noise import adc_step, estimate, reading_noise
 from grader.gap.runs import GapRun
 from grader.gap.segments import segments_of, shares
-from grader.gap.verdict import Scored, decide, lookalikes, rank
+from grader.gap.verdict import ACTING, Scored, decide, lookalikes, rank
 from grader.model.params import Controller
 from grader.stations import load_station
 
@@ -103,10 +103,15 @@ def test_an_effect_fitted_at_no_strength_is_neither_verdict_nor_lookalike(streng
              _scored("valve_saturation", 0.012, 0.016), _scored("sampling_delay", 0.0125, 0.038)]
     rk = rank(cands, NOISE)
     assert cands[rk.verdict].effect == verdict
-    acting = strength >= 1e-3
+    acting = strength >= ACTING
     assert ("coulomb_friction" in [cands[i].effect for i in rk.ties]) == (acting and verdict != "coulomb_friction")
     pick, _, _ = decide(cands, NOISE)
     assert (1 in lookalikes(cands, NOISE, pick, 0)) == (acting and pick != 1)
+    if not acting:  # nor the runner-up, nor a rival in the bootstrap: the saturation beats the delay clearly
+        assert cands[rk.runner_up].effect == "sampling_delay" and rk.margin > 0.0
+        assert rk.confidence == 1.0
+    alone = rank(cands[:2], NOISE)  # with no other effect, the verdict is none, by a margin that is not negative
+    assert cands[alone.verdict].effect == ("coulomb_friction" if acting else "none") and alone.margin >= 0.0
 
 
 def test_near_equal_effects_are_reported_as_indistinguishable() -> None:
