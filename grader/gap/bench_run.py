@@ -98,6 +98,10 @@ def _one_core(task: Task) -> Case:
 
 
 def _cases(todo: list[Task], jobs: int) -> Iterator[Case]:
+    """Each task's case, in order; with ``jobs`` > 1 from a pool of forked processes. Only a run stopped early
+    (Ctrl-C) drops the pool's queue and shuts it down without waiting: on Python 3.11 that races the pool's
+    manager thread closing its wake-up pipe, and at exit the interpreter then wrote to the closed pipe (an
+    ``OSError: Bad file descriptor`` traceback after the tables), so a finished run shuts the pool down waiting."""
     if jobs <= 1:
         yield from (run_task(t) for t in todo)
         return
@@ -105,8 +109,9 @@ def _cases(todo: list[Task], jobs: int) -> Iterator[Case]:
                                                             else "spawn")) as ex:
         try:
             yield from ex.map(_one_core, todo)
-        finally:
+        except BaseException:  # Ctrl-C or the caller stopping early: drop what is queued
             ex.shutdown(wait=False, cancel_futures=True)
+            raise
 
 
 def time_cli(folders: list[Path]) -> list[float]:

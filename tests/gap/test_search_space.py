@@ -110,3 +110,21 @@ def test_a_benchmark_dataset_whose_diagnosis_fails_is_a_counted_miss_not_the_end
     shrink = "median held-out shrink (verdicts naming an effect; the pair's where two are named): – (0 verdicts)"
     assert shrink in text  # an error is no verdict
     assert time_cli([task.folder]) == []  # the CLI's failure is reported, not raised
+
+
+def _twice(task: int) -> int:
+    return 2 * task
+
+
+def test_a_finished_parallel_benchmark_leaves_no_pool_thread_behind(monkeypatch: pytest.MonkeyPatch) -> None:
+    """After the last dataset the worker pool is shut down waiting: its manager thread has ended, so nothing races
+    the interpreter's exit for the pool's wake-up pipe (an "OSError: Bad file descriptor" traceback after the
+    tables of ``grader bench-gap --jobs 2``). Shut down without waiting, the manager thread is still running here."""
+    import threading
+    from concurrent.futures import process
+
+    from grader.gap import bench_run
+
+    monkeypatch.setattr(bench_run, "_one_core", _twice)  # forked workers see the module as it is now
+    assert list(bench_run._cases(list(range(6)), 2)) == [0, 2, 4, 6, 8, 10]  # type: ignore[arg-type]
+    assert not [t for t in threading.enumerate() if isinstance(t, process._ExecutorManagerThread) and t.is_alive()]
