@@ -31,7 +31,7 @@ from grader.gap.objective import RunObjective, objective
 from grader.gap.runs import GapRun, check_gains, current_demand, prepare_runs
 from grader.gap.schema import Candidate as SchemaCandidate
 from grader.gap.schema import Diagnosis, LoopGainInfo, QuantizationInfo, Verdict
-from grader.gap.search import SearchResult, search, second_effect
+from grader.gap.search import SearchResult, refit, search, second_effect
 from grader.gap.segments import Segment, segments_of
 from grader.gap.spread import spread
 from grader.gap.separating import separating_test
@@ -126,7 +126,8 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
     reaches "no effect" is no second effect (it only moved the first effect's optimum). ``first`` alone is
     refitted from the pair search's start; where its score from the first search, ``first_scored``, is better,
     that is the one to beat (a refit whose folds fell into worse optima let a pair through that predicted the
-    left-out runs worse than the verdict alone)."""
+    left-out runs worse than the verdict alone). The pick must also beat ``first`` alone refitted from where the
+    pick ended: an addition that only led the first effect out of a poorer optimum is no second effect."""
     found = second_effect(objs, base.params, first, others, executor=executor,
                           keep=lambda ends, lengths: _could_pass(ends, lengths, floor_nrmse, first_scored))
     scored = _scored(found)
@@ -144,10 +145,23 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
     pick, _, _ = decide(options, floor_nrmse, reference=ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
     if pick == ref:
         return None
+    alone = _alone_from(objs, base, first, found.states[eligible[pick]], executor)
+    if scores([alone])[0] < scores([options[ref]])[0]:
+        options[ref] = alone
+        pick, _, _ = decide(options, floor_nrmse, reference=ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
+        if pick == ref:
+            return None
     alike = lookalikes(options, floor_nrmse, pick, ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
     k = eligible[pick]
     return _Second(found.states[k], built[k], scored[k],
                    tuple((found.states[eligible[i]].candidate.names[-1], options[i]) for i in alike))
+
+
+def _alone_from(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, pair: FitState,
+                executor: Executor | None) -> Scored:
+    """``first`` alone refitted from where ``pair`` ended (first's own coordinates of the pair's θ), scored."""
+    return _scored(refit(objs, base.params, replace(first, theta=np.array(pair.theta[:first.theta.size])),
+                         executor=executor))[0]
 
 
 def _could_pass(ends: Sequence[FitState], lengths: Sequence[int], floor_nrmse: Array,

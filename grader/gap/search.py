@@ -114,6 +114,15 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
     return SearchResult(ends, cross_validate(full, ends), full.lengths)
 
 
+def refit(objectives: Sequence[RunObjective], base: RigParams, start: FitState, *,
+          executor: Executor | None = None) -> SearchResult:
+    """``start``'s candidate fitted on the whole runs from ``start``'s θ (no profile, no restarts) and
+    cross-validated."""
+    full = _fitter(objectives, base, None, executor)
+    end = full.fit(full.rebase([replace(start, jac=None, done=False, n_free=None)]), rounds=FULL_ROUNDS)
+    return SearchResult(end, cross_validate(full, end), full.lengths)
+
+
 def second_effect(objectives: Sequence[RunObjective], base: RigParams, first: FitState, others: Sequence[Candidate], *,
                   executor: Executor | None = None, keep: Keep | None = None) -> SearchResult:
     """Each of ``others`` added on top of the fitted ``first`` (greedy), searched from first's optimum;

@@ -207,3 +207,23 @@ def test_a_pair_that_falls_off_the_cliff_is_named_once_started_again(tmp_path: P
     label, d = _seed_300_case(300, tmp_path)
     assert set(label.split("+")) == {"valve_deadband", "sampling_delay"}
     assert (d.verdict.effect, d.verdict.second_effect) == ("valve_deadband", "sampling_delay")
+
+
+def test_a_second_effect_that_only_led_the_first_to_a_better_optimum_is_not_named(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Benchmark case 194 of seed 300 (Coulomb friction of 7 lbf alone): the Coulomb fit stops at a poorer optimum
+    (fitted at the truth's parameters it costs a fifth as much), and a current limit on top led the pair to a better
+    one. Coulomb friction alone, refitted from where that pair ended, predicts the left-out runs as well: no second
+    effect. Without that refit the current limit was named."""
+    from grader.gap import diagnose
+
+    task = _seed_300_plan()[194]
+    folder = tmp_path / task.folder.name
+    make_case_dataset(task.station, task.truth, folder, task.seed, friction_test=False)
+    assert task.label == "coulomb_friction"
+    d = analyse(folder).diagnosis
+    assert (d.verdict.effect, d.verdict.second_effect) == ("coulomb_friction", None)
+    # the first effect alone as it would score with no refit from the pair's end: never better than the bar's own
+    monkeypatch.setattr(diagnose, "_alone_from", lambda objs, base, first, pair, executor: diagnose.Scored(
+        first.candidate.effect, np.full(len(objs), 1.0), np.full(len(objs), 1.0), 1, 1.0))
+    assert analyse(folder).diagnosis.verdict.second_effect == "valve_saturation"
