@@ -36,7 +36,7 @@ from grader.gap.segments import Segment, segments_of
 from grader.gap.spread import spread
 from grader.gap.separating import separating_test
 from grader.model.effects import EFFECTS
-from grader.gap.verdict import ACTING, Ranking, Scored, decide, fit_gain, lookalikes, rank, scores
+from grader.gap.verdict import Ranking, Scored, decide, fit_gain, lookalikes, rank, scores
 
 Array = NDArray[np.float64]
 #: A verdict whose fit leaves more than this many times the floor's mean square (the reading noise's and what the
@@ -186,15 +186,14 @@ def _pair_beyond_none(objs: Sequence[RunObjective], base: baseline_mod.Baseline,
     with each other effect on top. A pair that explains clearly more than its first effect and than ``none``
     makes that effect the verdict (margin 0, confidence 0: the runs do not name it alone)."""
     names = [s.candidate.effect for s in found.states]
-    effects = [i for i, (n, s) in enumerate(zip(names, found.states)) if n != NONE
-               and s.candidate.strength(s.theta) >= ACTING]  # at no strength it is none, with nothing to add to
+    scored = _scored(found)
+    effects = [i for i, n in enumerate(names) if n != NONE and scored[i].acts]  # one that does not act is none
     if not effects:
         return rk, None
     k = min(effects, key=lambda i: found.states[i].cost)
     first = found.states[k]
     floor = np.sqrt(noise_nrmse**2 + spread(objs, first.candidate.point(base.params, first.theta), sigma))
     others = [c for c in candidates if c.effect not in (NONE, names[k], *NOT_FROM_RUNS)]
-    scored = _scored(found)
     extra = _second(objs, base, first, others, floor, before, executor, scored[k])
     if extra is None:
         return rk, None

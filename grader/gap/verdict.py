@@ -67,6 +67,11 @@ class Scored:
     k_extra: int
     strength: float  # fitted strength of the (last added) effect, a fraction of its realistic range's top
 
+    @property
+    def acts(self) -> bool:
+        """Whether the effect is fitted at a strength that acts (:data:`ACTING`)."""
+        return self.strength >= ACTING
+
 
 @dataclass(frozen=True)
 class Ranking:
@@ -119,11 +124,8 @@ def decide(cands: Sequence[Scored], noise_nrmse: Array, weights: Array | None = 
     w = np.ones(noise_nrmse.size) if weights is None else weights
     s = scores(cands, w)
     i_none = next(i for i, c in enumerate(cands) if c.effect == NONE) if reference is None else reference
-    effects = [i for i in range(len(cands)) if i != i_none]
-    if not effects:
-        return i_none, i_none, 0.0
-    acting = [i for i in effects if cands[i].strength >= ACTING]
-    if not acting:  # every effect fitted at no strength: each is the reference itself
+    acting = [i for i in range(len(cands)) if i != i_none and cands[i].acts]
+    if not acting:  # no effect, or every one fitted at no strength: each is the reference itself
         return i_none, i_none, 0.0
     e = {i: evidence(cands[i_none], cands[i], noise_nrmse, w, gain, rel_gain) for i in acting}
     ok = [i for i in acting if e[i] > 1.0]
@@ -142,7 +144,7 @@ def lookalikes(cands: Sequence[Scored], noise_nrmse: Array, pick: int, reference
     all runs as well (within TIE_FIT of the floor's mean square)."""
     w = np.ones(noise_nrmse.size)
     s, floor, best = scores(cands, w), _ms(noise_nrmse, w), cands[pick]
-    return [i for i, c in enumerate(cands) if i not in (pick, reference) and c.strength >= ACTING
+    return [i for i, c in enumerate(cands) if i not in (pick, reference) and c.acts
             and evidence(cands[reference], c, noise_nrmse, w, gain, rel_gain) > 1.0
             and (np.log(s[i] / s[pick]) < TIE or _ms(c.fit, w) - _ms(best.fit, w) < TIE_FIT * floor)]
 
@@ -151,7 +153,7 @@ def _ties(cands: Sequence[Scored], s: Array, verdict: int, noise_nrmse: Array, w
     w = np.ones(noise_nrmse.size) if w is None else w
     if cands[verdict].effect != NONE:
         v, floor = cands[verdict], _ms(noise_nrmse, w)
-        return [i for i, c in enumerate(cands) if i != verdict and c.effect != NONE and c.strength >= ACTING
+        return [i for i, c in enumerate(cands) if i != verdict and c.effect != NONE and c.acts
                 and (np.log(s[i] / s[verdict]) < TIE or _ms(c.fit, w) - _ms(v.fit, w) < TIE_FIT * floor)]
     none, floor = cands[verdict], NOISE_GAIN * _ms(noise_nrmse, w)
     return [i for i, c in enumerate(cands) if i != verdict and c.strength >= VISIBLE
@@ -164,7 +166,7 @@ def rank(cands: Sequence[Scored], noise_nrmse: Array, *, seed: int = 0) -> Ranki
     s = scores(cands)
     verdict, _, e = decide(cands, noise_nrmse)
     rest = [int(i) for i in np.argsort(s, kind="stable") if i != verdict]
-    runner = next((i for i in rest if cands[i].effect == NONE or cands[i].strength >= ACTING), None)
+    runner = next((i for i in rest if cands[i].effect == NONE or cands[i].acts), None)
     if cands[verdict].effect == NONE:
         margin = float(-np.log(max(e, np.exp(-MAX_MARGIN))))
     else:
@@ -194,7 +196,7 @@ def _confidence(cands: Sequence[Scored], noise_nrmse: Array, verdict: int, seed:
         return 1.0
     is_none = np.arange(len(cands)) == i_none
     e = np.minimum((1.0 - held / held[:, [i_none]]) / REL_GAIN, (fit[:, [i_none]] - fit) / (NOISE_GAIN * floor[:, None]))
-    ok = (e > 1.0) & ~is_none & (np.array([c.strength for c in cands]) >= ACTING)
+    ok = (e > 1.0) & ~is_none & np.array([c.acts for c in cands])
     top = np.min(np.where(ok, s, np.inf), axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         close = ok & (np.log(s / top[:, None]) < CLOSE)
@@ -202,6 +204,6 @@ def _confidence(cands: Sequence[Scored], noise_nrmse: Array, verdict: int, seed:
     same = np.where(ok.any(axis=1), best, i_none) == verdict
     if cands[verdict].effect == NONE:
         return float(np.sum(same)) / BOOTSTRAP
-    others = np.array([i != verdict and c.effect != NONE and c.strength >= ACTING for i, c in enumerate(cands)])
+    others = np.array([i != verdict and c.effect != NONE and c.acts for i, c in enumerate(cands)])
     tied = (np.log(s / s[:, [verdict]]) < TIE) | (fit - fit[:, [verdict]] < TIE_FIT * floor[:, None])
     return float(np.sum(same & ~np.any(tied & others, axis=1))) / BOOTSTRAP

@@ -157,13 +157,19 @@ def _seed_300_plan() -> tuple[Task, ...]:
     return tuple(tasks(BenchConfig(n=25, pairs=60, seed=300, friction_test=False), Path("case")))
 
 
-def _seed_300_case(index: int, tmp_path: Path) -> tuple[str, Diagnosis]:
-    """Benchmark run A's dataset ``index`` (seed 300, no friction test, from the solve_ivp path), rebuilt and
-    diagnosed: its withheld effects and the diagnosis."""
+def _seed_300_dataset(index: int, tmp_path: Path) -> tuple[str, Path]:
+    """Benchmark run A's dataset ``index`` (seed 300, no friction test, from the solve_ivp path), rebuilt in
+    ``tmp_path``: its withheld effects and its folder."""
     task = _seed_300_plan()[index]
     task = replace(task, folder=tmp_path / task.folder.name)
     make_case_dataset(task.station, task.truth, task.folder, task.seed, friction_test=False)
-    return task.label, analyse(task.folder).diagnosis
+    return task.label, task.folder
+
+
+def _seed_300_case(index: int, tmp_path: Path) -> tuple[str, Diagnosis]:
+    """Run A's dataset ``index`` rebuilt and diagnosed: its withheld effects and the diagnosis."""
+    label, folder = _seed_300_dataset(index, tmp_path)
+    return label, analyse(folder).diagnosis
 
 
 def test_a_second_effect_must_beat_the_verdict_alone_as_the_first_search_scored_it(tmp_path: Path) -> None:
@@ -217,10 +223,8 @@ def test_a_second_effect_that_only_led_the_first_to_a_better_optimum_is_not_name
     effect. Without that refit the current limit was named."""
     from grader.gap import diagnose
 
-    task = _seed_300_plan()[194]
-    folder = tmp_path / task.folder.name
-    make_case_dataset(task.station, task.truth, folder, task.seed, friction_test=False)
-    assert task.label == "coulomb_friction"
+    label, folder = _seed_300_dataset(194, tmp_path)
+    assert label == "coulomb_friction"
     d = analyse(folder).diagnosis
     assert (d.verdict.effect, d.verdict.second_effect) == ("coulomb_friction", None)
     # the first effect alone as it would score with no refit from the pair's end: never better than the bar's own
