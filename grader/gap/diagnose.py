@@ -127,7 +127,8 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
     refitted from the pair search's start; where its score from the first search, ``first_scored``, is better,
     that is the one to beat (a refit whose folds fell into worse optima let a pair through that predicted the
     left-out runs worse than the verdict alone). The pick must also beat ``first`` alone refitted from where the
-    pick ended: an addition that only led the first effect out of a poorer optimum is no second effect."""
+    pick ended, where that refit reached a better optimum (:func:`_better_alone`): an addition that only led the
+    first effect out of a poorer optimum is no second effect."""
     found = second_effect(objs, base.params, first, others, executor=executor,
                           keep=lambda ends, lengths: _could_pass(ends, lengths, floor_nrmse, first_scored))
     scored = _scored(found)
@@ -146,7 +147,7 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
     if pick == ref:
         return None
     alone = _alone_from(objs, base, first, found.states[eligible[pick]], executor)
-    if scores([alone])[0] < scores([options[ref]])[0]:
+    if _better_alone(alone, options[ref]):
         options[ref] = alone
         pick, _, _ = decide(options, floor_nrmse, reference=ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
         if pick == ref:
@@ -155,6 +156,14 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
     k = eligible[pick]
     return _Second(found.states[k], built[k], scored[k],
                    tuple((found.states[eligible[i]].candidate.names[-1], options[i]) for i in alike))
+
+
+def _better_alone(alone: Scored, bar: Scored) -> bool:
+    """Whether the first effect refitted from a pair's end, ``alone``, replaces ``bar`` as what the pair must beat:
+    its all-runs fit reached a better optimum (a lower mean square) and it scores better held out. A refit that ended
+    in a poorer optimum (run A's 0289: a hysteresis refitted from its pair with a spool lag fitted all runs 50 times
+    worse) only has folds that happened to predict the left-out runs better."""
+    return bool(np.mean(alone.fit**2) < np.mean(bar.fit**2) and scores([alone])[0] < scores([bar])[0])
 
 
 def _alone_from(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, pair: FitState,

@@ -17,13 +17,14 @@ from grader.gap import search
 from grader.gap.bench import BenchConfig, Case, make_case_dataset
 from grader.gap.bench_report import render
 from grader.gap.bench_run import Task, tasks
-from grader.gap.diagnose import analyse
+from grader.gap.diagnose import _better_alone, analyse
 from grader.gap.evidence import Friction, viscous
 from grader.gap.noise import Noise
 from grader.gap.quantization import assess
 from grader.gap.runs import GapRun
 from grader.gap.schema import Diagnosis, Verdict
 from grader.gap.separating import GENERIC, separating_test
+from grader.gap.verdict import Scored
 from grader.model.effects import EffectSet
 from grader.model.params import Controller
 from grader.model.rig_ivp import simulate_rig_ivp
@@ -231,3 +232,27 @@ def test_a_second_effect_that_only_led_the_first_to_a_better_optimum_is_not_name
     monkeypatch.setattr(diagnose, "_alone_from", lambda objs, base, first, pair, executor: diagnose.Scored(
         first.candidate.effect, np.full(len(objs), 1.0), np.full(len(objs), 1.0), 1, 1.0))
     assert analyse(folder).diagnosis.verdict.second_effect == "valve_saturation"
+
+
+def _alone(fit: float, heldout: float) -> Scored:
+    return Scored("valve_hysteresis", np.full(6, heldout), np.full(6, fit), 1, 0.3)
+
+
+@pytest.mark.parametrize(("alone", "bar", "replaces"), [
+    (_alone(0.01, 0.01), _alone(0.02, 0.02), True),  # a better optimum that predicts better: the bar
+    (_alone(0.30, 0.01), _alone(0.02, 0.02), False),  # folds that predict better from a poorer optimum: not
+    (_alone(0.01, 0.03), _alone(0.02, 0.02), False),  # a better optimum that predicts worse: not
+    (_alone(0.02, 0.02), _alone(0.02, 0.02), False),  # the same: the bar stays
+])
+def test_the_first_effect_refitted_from_a_pairs_end_replaces_the_bar_only_from_a_better_optimum(
+        alone: Scored, bar: Scored, replaces: bool) -> None:
+    assert _better_alone(alone, bar) is replaces
+
+
+def test_a_refit_that_ended_in_a_poorer_optimum_does_not_reject_a_true_second_effect(tmp_path: Path) -> None:
+    """Benchmark case 289 of seed 300 (a 0.82 mA backlash and a 4.5 ms spool lag): the backlash refitted from where
+    its pair with the spool lag ended fitted all runs 50 times worse than the backlash alone, yet its folds predicted
+    the left-out runs better, and it had rejected the spool lag. Both are named."""
+    label, d = _seed_300_case(289, tmp_path)
+    assert set(label.split("+")) == {"valve_dynamics", "valve_hysteresis"}
+    assert (d.verdict.effect, d.verdict.second_effect) == ("valve_hysteresis", "valve_dynamics")
