@@ -7,7 +7,8 @@ near the critical gain a loop gain off by 0.1 % changes the instability run's gr
 Each effect magnitude m is the parameter's value divided by the top of its realistic range
 (from :mod:`grader.model.effects`), so every coordinate is O(1).
 ``sensor_noise`` and ``sensor_quantization`` are measurement noise, not candidates
-(see :mod:`grader.gap.noise`); ``valve_dynamics`` is fitted as a first-order spool lag.
+(see :mod:`grader.gap.noise`); ``valve_dynamics`` is fitted as a first-order spool lag, and as a second-order
+spool where the verdict is a delay (:mod:`grader.gap.spool`).
 """
 
 from __future__ import annotations
@@ -102,6 +103,15 @@ class Candidate:
     @property
     def n_theta(self) -> int:
         return N_LINEAR + len(self.params)
+
+    def held(self) -> dict[str, float]:
+        """The held parameters of an effect fitted in a form other than its default (a second-order spool's order
+        and damping), by report key (see :meth:`label`); empty for the default forms."""
+        out: dict[str, float] = {}
+        for name, fixed in self.fixed.items():
+            if any(v != EFFECTS[name].param(k).default for k, v in fixed.items()):
+                out.update({k if len(self.names) < 2 else f"{name}.{k}": v for k, v in fixed.items()})
+        return out
 
     def label(self, p: FitParam) -> str:
         """A parameter's key in reports: its name, prefixed by its effect in a combination."""

@@ -21,6 +21,7 @@ from grader.datasets import Dataset, load
 from grader.gap import baseline as baseline_mod
 from grader.gap import build, evidence
 from grader.gap import noise as noise_mod
+from grader.gap import spool
 from grader.gap import quantization as quant_mod
 from grader.gap.backend import Backend, Point, worker
 from grader.gap.candidates import NONE, NOT_FROM_RUNS, Candidate, make_candidates
@@ -230,6 +231,25 @@ def _verdict(rk: Ranking, names: list[str]) -> Verdict:
                    shares={} if v == NONE else {v: 1.0}, explanation=text)
 
 
+def _second_order_spool(objs: Sequence[RunObjective], base: baseline_mod.Baseline, found: SearchResult,
+                        scored: list[Scored], built: list[SchemaCandidate], rk: Ranking, noise_nrmse: Array,
+                        before: CrossValidation, executor: Executor | None
+                        ) -> tuple[SearchResult, list[Scored], list[SchemaCandidate], Ranking]:
+    """A delay verdict: the second-order spool fitted from the delay's optimum becomes the ``valve_dynamics``
+    candidate where it fits the runs better than the first-order lag, and the delay is ranked again with it
+    (:mod:`grader.gap.spool`); otherwise everything is returned unchanged."""
+    k = [s.candidate.effect for s in found.states].index(spool.SPOOL)
+    alt = spool.fit_against_delay(objs, base.params, found.states[rk.verdict], found.states[k], executor=executor)
+    s_alt = _scored(alt)[0]
+    if np.mean(s_alt.fit**2) >= np.mean(scored[k].fit**2):
+        return found, scored, built, rk
+    states, cvs = [*found.states[:k], alt.states[0], *found.states[k + 1:]], [*found.cvs[:k], alt.cvs[0], *found.cvs[k + 1:]]
+    scored = [*scored[:k], s_alt, *scored[k + 1:]]
+    rk = rank(scored, noise_nrmse, verdict=rk.verdict)
+    entry = build.candidate(states[k], cvs[k], before, float(rk.scores[k]), [o.run for o in objs], found.lengths, base)
+    return replace(found, states=states, cvs=cvs), scored, [*built[:k], entry, *built[k + 1:]], rk
+
+
 def _needs_second(state: FitState, lengths: Sequence[int], floor_nrmse: Array) -> bool:
     """Whether the verdict's all-runs fit leaves a residual above the floor (mean square over RESIDUAL_RATIO
     times the floor's): then a pair of effects is searched."""
@@ -251,6 +271,9 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
         built = [build.candidate(st, cv, before, float(sc), runs, found.lengths, base)
                  for st, cv, sc in zip(found.states, found.cvs, rk.scores)]
         rk, why = evidence.coulomb_tie(rk, names, built, fr)
+        if names[rk.verdict] == spool.DELAY and spool.SPOOL in names:
+            found, scored, built, rk = _second_order_spool(objs, base, found, scored, built, rk, noise_nrmse, before,
+                                                           executor)
         extra, alone = None, True
         if names[rk.verdict] != NONE and second is not False:
             first = found.states[rk.verdict]

@@ -136,7 +136,7 @@ def _which(d: Diagnosis, best: Candidate) -> str:
             why = next(part for part in v.explanation.split("; ") if "friction test" in part)
             text += f" The runs alone rank it with {runner}; {why}."
     if v.indistinguishable_from:
-        others = ", ".join(effect_name(e) for e in v.indistinguishable_from)
+        others = ", ".join(_with_params(d, e) for e in v.indistinguishable_from)
         text += f" The data cannot tell it apart from: {others}; {v.separating_test} would separate them."
     combo = combination(d)
     if v.second_effect == "viscous_friction" and combo is None or v.effect == "viscous_friction":
@@ -151,6 +151,14 @@ def _which(d: Diagnosis, best: Candidate) -> str:
     elif v.second_effect == "sensor_quantization":
         text += f" {_quantization(d)}"
     return text
+
+
+def _with_params(d: Diagnosis, effect: str) -> str:
+    """An effect's name with its fitted parameters, as its candidate gives them (a second-order spool: ``tau = 2.5
+    ± 0.13 ms, order = 2, zeta = 0.7``)."""
+    c = next((c for c in d.candidates if c.effect == effect), None)
+    params = "" if c is None else ", ".join(param_text(k, p) for k, p in c.params.items())
+    return f"{effect_name(effect)} ({params})" if params else effect_name(effect)
 
 
 def combination(d: Diagnosis) -> Candidate | None:

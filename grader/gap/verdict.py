@@ -160,11 +160,13 @@ def _ties(cands: Sequence[Scored], s: Array, verdict: int, noise_nrmse: Array, w
             and abs(_ms(none.fit, w) - _ms(c.fit, w)) < floor]
 
 
-def rank(cands: Sequence[Scored], noise_nrmse: Array, *, seed: int = 0) -> Ranking:
+def rank(cands: Sequence[Scored], noise_nrmse: Array, *, seed: int = 0, verdict: int | None = None) -> Ranking:
     """Order (verdict first, then by score), margin, run-bootstrap confidence and ties; the runner-up is the best
-    scoring of the others that is ``none`` or acts (:data:`ACTING`)."""
+    scoring of the others that is ``none`` or acts (:data:`ACTING`). A given ``verdict`` is kept (a verdict ranked
+    again after another candidate's fit was replaced)."""
     s = scores(cands)
-    verdict, _, e = decide(cands, noise_nrmse)
+    decided, _, e = decide(cands, noise_nrmse)
+    verdict = decided if verdict is None else verdict
     rest = [int(i) for i in np.argsort(s, kind="stable") if i != verdict]
     runner = next((i for i in rest if cands[i].effect == NONE or cands[i].acts), None)
     if cands[verdict].effect == NONE:

@@ -1,0 +1,68 @@
+"""The second-order spool against a delay verdict (:mod:`grader.gap.spool`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from grader.gap import spool
+from grader.gap.bench import make_case_dataset
+from grader.gap.candidates import Candidate, combine, make_candidates
+from grader.gap.diagnose import analyse
+from grader.gap.verdict import Scored, rank
+from grader.model.effects import EffectSet
+from grader.stations import load_station
+
+NOISE = np.full(6, 0.01)
+
+
+def _scored(effect: str, heldout: float, fit: float, k: int = 1) -> Scored:
+    return Scored(effect, np.full(6, heldout), np.full(6, fit), k, 0.5)
+
+
+def _candidates() -> dict[str, Candidate]:
+    names = ["sampling_delay", "valve_dynamics", "valve_hysteresis"]
+    return {c.effect: c for c in make_candidates(load_station("default").params(), names)}
+
+
+def test_only_a_form_other_than_the_default_reports_its_held_parameters() -> None:
+    c = _candidates()
+    lag = c["valve_dynamics"]
+    assert lag.held() == {}  # the first-order lag: the effect's defaults, reported as before
+    second = spool.second_order(lag)
+    assert second.held() == {"order": 2.0, "zeta": 0.7}
+    assert second.values(np.array([0.0, 0.0, 0.0, 0.5]))["valve_dynamics"] == {"order": 2.0, "zeta": 0.7,
+                                                                                 "tau": pytest.approx(0.0025)}
+    assert combine(c["valve_hysteresis"], second).held() == {"valve_dynamics.order": 2.0, "valve_dynamics.zeta": 0.7}
+    with pytest.raises(AssertionError):
+        spool.second_order(c["sampling_delay"])
+
+
+def test_a_kept_verdict_is_ranked_again_with_its_new_ties() -> None:
+    """A delay that scores a little worse than a spool fitting as well stays the verdict when kept, and the spool is
+    listed as a tie; ranked freely, the spool would win."""
+    cands = [_scored("none", 0.2, 0.2, 0), _scored("sampling_delay", 0.0205, 0.0201), _scored("valve_dynamics", 0.0200, 0.0200)]
+    assert cands[rank(cands, NOISE).verdict].effect == "valve_dynamics"
+    kept = rank(cands, NOISE, verdict=1)
+    assert kept.verdict == 1 and kept.order[0] == 1
+    assert [cands[i].effect for i in kept.ties] == ["valve_dynamics"]
+    assert kept.margin == 0.0 and kept.confidence == 0.0  # tied in every resample
+
+
+def test_a_second_order_spool_is_named_beside_the_delay_it_looks_like(tmp_path: Path) -> None:
+    """A 2.5 ms second-order spool (damping 0.7) on the default station, simulated by the solve_ivp path: it acts as
+    a 3.5 ms delay, and the verdict is the delay. The spool is listed as indistinguishable from it, with its
+    second-order fit, whose interval covers the truth (before, the first-order lag fitted clearly worse and the
+    delay stood alone)."""
+    truth = EffectSet({"valve_dynamics": {"tau": 0.0025, "order": 2.0, "zeta": 0.7}})
+    folder = make_case_dataset(load_station("default"), truth, tmp_path / "spool", 5, friction_test=False)
+    d = analyse(folder).diagnosis
+    assert d.verdict.effect == "sampling_delay"
+    assert d.verdict.indistinguishable_from == ["valve_dynamics"]
+    assert "valve_dynamics" in d.verdict.explanation and d.verdict.separating_test
+    fitted = next(c for c in d.candidates if c.effect == "valve_dynamics").params
+    assert fitted["order"].value == 2.0 and fitted["zeta"].value == 0.7 and fitted["order"].interval is None
+    lo, hi = fitted["tau"].interval
+    assert lo <= 0.0025 <= hi
