@@ -121,15 +121,18 @@ def _significant(cand: SchemaCandidate, effect: str) -> bool:
 
 def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, others: Sequence[Candidate],
             floor_nrmse: Array, before: CrossValidation, executor: Executor | None,
-            first_scored: Scored) -> _Second | None:
-    """The best second effect on top of ``first`` if it explains clearly more than ``first`` alone (beyond the
+            first_scored: Scored) -> tuple[_Second | None, SearchResult | None]:
+    """(the best second effect on top of ``first``, ``first`` refitted to a better optimum, or None for each).
+
+    The second effect: the best addition if it explains clearly more than ``first`` alone (beyond the
     floor ``first`` leaves, by :data:`SECOND_GAIN`), else None; an addition whose parameter's 95 % interval
     reaches "no effect" is no second effect (it only moved the first effect's optimum). ``first`` alone is
     refitted from the pair search's start; where its score from the first search, ``first_scored``, is better,
     that is the one to beat (a refit whose folds fell into worse optima let a pair through that predicted the
     left-out runs worse than the verdict alone). The pick must also beat ``first`` alone refitted from where the
     pick ended, where that refit reached a better optimum (:func:`_better_alone`): an addition that only led the
-    first effect out of a poorer optimum is no second effect."""
+    first effect out of a poorer optimum is no second effect. That refit is returned where it is also better than
+    ``first_scored``: the verdict's own fit is then that one."""
     found = second_effect(objs, base.params, first, others, executor=executor,
                           keep=lambda ends, lengths: _could_pass(ends, lengths, floor_nrmse, first_scored))
     scored = _scored(found)
@@ -146,17 +149,19 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
     ref = len(eligible) - 1
     pick, _, _ = decide(options, floor_nrmse, reference=ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
     if pick == ref:
-        return None
-    alone = _alone_from(objs, base, first, found.states[eligible[pick]], executor)
+        return None, None
+    refitted = _alone_from(objs, base, first, found.states[eligible[pick]], executor)
+    alone = _scored(refitted)[0]
+    better = refitted if _better_alone(alone, first_scored) else None
     if _better_alone(alone, options[ref]):
         options[ref] = alone
         pick, _, _ = decide(options, floor_nrmse, reference=ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
         if pick == ref:
-            return None
+            return None, better
     alike = lookalikes(options, floor_nrmse, pick, ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
     k = eligible[pick]
     return _Second(found.states[k], built[k], scored[k],
-                   tuple((found.states[eligible[i]].candidate.names[-1], options[i]) for i in alike))
+                   tuple((found.states[eligible[i]].candidate.names[-1], options[i]) for i in alike)), better
 
 
 def _better_alone(alone: Scored, bar: Scored) -> bool:
@@ -168,10 +173,9 @@ def _better_alone(alone: Scored, bar: Scored) -> bool:
 
 
 def _alone_from(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, pair: FitState,
-                executor: Executor | None) -> Scored:
-    """``first`` alone refitted from where ``pair`` ended (first's own coordinates of the pair's θ), scored."""
-    return _scored(refit(objs, base.params, replace(first, theta=np.array(pair.theta[:first.theta.size])),
-                         executor=executor))[0]
+                executor: Executor | None) -> SearchResult:
+    """``first`` alone refitted from where ``pair`` ended (first's own coordinates of the pair's θ)."""
+    return refit(objs, base.params, replace(first, theta=np.array(pair.theta[:first.theta.size])), executor=executor)
 
 
 def _could_pass(ends: Sequence[FitState], lengths: Sequence[int], floor_nrmse: Array,
@@ -204,7 +208,7 @@ def _pair_beyond_none(objs: Sequence[RunObjective], base: baseline_mod.Baseline,
     first = found.states[k]
     floor = np.sqrt(noise_nrmse**2 + spread(objs, first.candidate.point(base.params, first.theta), sigma))
     others = [c for c in candidates if c.effect not in (NONE, names[k], *NOT_FROM_RUNS)]
-    extra = _second(objs, base, first, others, floor, before, executor, scored[k])
+    extra, _ = _second(objs, base, first, others, floor, before, executor, scored[k])
     if extra is None:
         return rk, None
     none = scored[names.index(NONE)]
@@ -243,9 +247,18 @@ def _second_order_spool(objs: Sequence[RunObjective], base: baseline_mod.Baselin
     s_alt = _scored(alt)[0]
     if np.mean(s_alt.fit**2) >= np.mean(scored[k].fit**2):
         return found, scored, built, rk
+    return _replaced(found, scored, built, rk.verdict, alt, noise_nrmse, before, objs, base)
+
+
+def _replaced(found: SearchResult, scored: list[Scored], built: list[SchemaCandidate], verdict: int,
+              alt: SearchResult, noise_nrmse: Array, before: CrossValidation, objs: Sequence[RunObjective],
+              base: baseline_mod.Baseline) -> tuple[SearchResult, list[Scored], list[SchemaCandidate], Ranking]:
+    """The search's fit of ``alt``'s one candidate (an effect of ``found``) replaced by ``alt``'s: its state, scores
+    and report entry, and ``verdict`` ranked again, kept."""
+    k = [s.candidate.effect for s in found.states].index(alt.states[0].candidate.effect)
     states, cvs = [*found.states[:k], alt.states[0], *found.states[k + 1:]], [*found.cvs[:k], alt.cvs[0], *found.cvs[k + 1:]]
-    scored = [*scored[:k], s_alt, *scored[k + 1:]]
-    rk = rank(scored, noise_nrmse, verdict=rk.verdict)
+    scored = [*scored[:k], _scored(alt)[0], *scored[k + 1:]]
+    rk = rank(scored, noise_nrmse, verdict=verdict)
     entry = build.candidate(states[k], cvs[k], before, float(rk.scores[k]), [o.run for o in objs], found.lengths, base)
     return replace(found, states=states, cvs=cvs), scored, [*built[:k], entry, *built[k + 1:]], rk
 
@@ -280,7 +293,11 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
             floor = np.sqrt(noise_nrmse**2 + spread(objs, first.candidate.point(base.params, first.theta), sigma))
             if second or _needs_second(first, found.lengths, floor):
                 others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict], *NOT_FROM_RUNS)]
-                extra = _second(objs, base, first, others, floor, before, executor, scored[rk.verdict])
+                extra, better = _second(objs, base, first, others, floor, before, executor, scored[rk.verdict])
+                if better is not None and not why:  # the verdict's own fit: the better optimum its pair search
+                    # led to (a tie the friction test broke keeps its ranking)
+                    found, scored, built, rk = _replaced(found, scored, built, rk.verdict, better, noise_nrmse,
+                                                         before, objs, base)
         elif second is not False and _needs_second(found.states[rk.verdict], found.lengths, np.sqrt(NONE_GAP) * noise_nrmse):
             rk, extra = _pair_beyond_none(objs, base, found, rk, candidates, noise_nrmse, sigma, before, executor)
             alone = extra is None

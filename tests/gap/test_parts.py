@@ -197,7 +197,7 @@ def test_a_pair_beyond_none_starts_from_an_effect_that_acts(monkeypatch: pytest.
 
     def second(objs, base, first, others, floor, before, executor, first_scored):  # type: ignore[no-untyped-def]
         firsts.append(first.candidate.effect)
-        return None
+        return None, None
 
     monkeypatch.setattr(diag, "_second", second)
     monkeypatch.setattr(diag, "spread", lambda objs, point, sigma: np.zeros(6))
