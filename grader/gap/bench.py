@@ -200,8 +200,8 @@ def coverage(d: object, truth: EffectSet) -> dict[str, tuple[float, float, float
         for key, v in cand.params.items():
             effect, _, pname = key.rpartition(".")
             effect = effect or cand.effect
-            if effect in truth and pname in truth.values[effect]:
-                lo, hi = v.interval or (v.value, v.value)
+            if effect in truth and pname in truth.values[effect] and v.interval is not None:  # held: not fitted
+                lo, hi = v.interval
                 out[f"{effect}:{pname}"] = (truth.value(effect, pname), v.value, lo, hi)
         break
     static = d.static_evidence.get("viscous_friction", {}).get("B")  # type: ignore[attr-defined]

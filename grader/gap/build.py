@@ -131,7 +131,7 @@ def candidate(state: FitState, cv: CrossValidation, before: CrossValidation, sco
         v = th[j] * fp.scale
         half = k * max(se[j] * fp.scale, MODEL_FORM * abs(v))
         params[c.label(fp)] = value(v, fp.unit, (max(fp.lo, v - half), min(fp.hi, v + half)))
-    params.update({k: value(v, "dimensionless") for k, v in c.held().items()})
+    params.update({key: value(v, unit) for key, (v, unit) in c.held().items()})  # held: no interval
     lin = {}
     for j, (name, unit) in enumerate(LINEAR):
         v0 = float(getattr(base.params, name))

@@ -104,13 +104,15 @@ class Candidate:
     def n_theta(self) -> int:
         return N_LINEAR + len(self.params)
 
-    def held(self) -> dict[str, float]:
-        """The held parameters of an effect fitted in a form other than its default (a second-order spool's order
-        and damping), by report key (see :meth:`label`); empty for the default forms."""
-        out: dict[str, float] = {}
+    def held(self) -> dict[str, tuple[float, str]]:
+        """The held parameters (value, unit) of an effect fitted in a form other than its default (a second-order
+        spool's order and damping), by report key (see :meth:`label`); empty for the default forms."""
+        out: dict[str, tuple[float, str]] = {}
         for name, fixed in self.fixed.items():
-            if any(v != EFFECTS[name].param(k).default for k, v in fixed.items()):
-                out.update({k if len(self.names) < 2 else f"{name}.{k}": v for k, v in fixed.items()})
+            spec = EFFECTS[name]
+            if any(v != spec.param(p).default for p, v in fixed.items()):
+                out.update({p if len(self.names) < 2 else f"{name}.{p}": (v, spec.param(p).unit)
+                            for p, v in fixed.items()})
         return out
 
     def label(self, p: FitParam) -> str:

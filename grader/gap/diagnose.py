@@ -21,8 +21,8 @@ from grader.datasets import Dataset, load
 from grader.gap import baseline as baseline_mod
 from grader.gap import build, evidence
 from grader.gap import noise as noise_mod
-from grader.gap import spool
 from grader.gap import quantization as quant_mod
+from grader.gap import spool
 from grader.gap.backend import Backend, Point, worker
 from grader.gap.candidates import NONE, NOT_FROM_RUNS, Candidate, make_candidates
 from grader.gap.crossval import CrossValidation
@@ -166,10 +166,11 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
 
 def _better_alone(alone: Scored, bar: Scored) -> bool:
     """Whether the first effect refitted from a pair's end, ``alone``, replaces ``bar`` as what the pair must beat:
-    its all-runs fit reached a better optimum (a lower mean square) and it scores better held out. A refit that ended
+    its effect acts (:data:`grader.gap.verdict.ACTING`), its all-runs fit reached a better optimum (a lower mean
+    square) and it scores better held out. A refit that ended
     in a poorer optimum (run A's 0289: a hysteresis refitted from its pair with a spool lag fitted all runs 50 times
     worse) only has folds that happened to predict the left-out runs better."""
-    return bool(np.mean(alone.fit**2) < np.mean(bar.fit**2) and scores([alone])[0] < scores([bar])[0])
+    return bool(alone.acts and np.mean(alone.fit**2) < np.mean(bar.fit**2) and scores([alone])[0] < scores([bar])[0])
 
 
 def _alone_from(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, pair: FitState,
@@ -225,6 +226,8 @@ def _verdict(rk: Ranking, names: list[str]) -> Verdict:
     ties = [names[i] for i in rk.ties]
     if v == NONE:
         text = "no candidate effect explains clearly more than the noise"
+    elif any(rk.scores[i] < rk.scores[rk.verdict] for i in rk.ties):  # kept over a lookalike (a second-order spool)
+        text = f"{v} explains the gap as well as any candidate"
     else:
         text = f"{v} explains the gap best"
     test = separating_test(v, ties)
@@ -256,7 +259,8 @@ def _replaced(found: SearchResult, scored: list[Scored], built: list[SchemaCandi
     """The search's fit of ``alt``'s one candidate (an effect of ``found``) replaced by ``alt``'s: its state, scores
     and report entry, and ``verdict`` ranked again, kept."""
     k = [s.candidate.effect for s in found.states].index(alt.states[0].candidate.effect)
-    states, cvs = [*found.states[:k], alt.states[0], *found.states[k + 1:]], [*found.cvs[:k], alt.cvs[0], *found.cvs[k + 1:]]
+    states = [*found.states[:k], alt.states[0], *found.states[k + 1:]]
+    cvs = [*found.cvs[:k], alt.cvs[0], *found.cvs[k + 1:]]
     scored = [*scored[:k], _scored(alt)[0], *scored[k + 1:]]
     rk = rank(scored, noise_nrmse, verdict=verdict)
     entry = build.candidate(states[k], cvs[k], before, float(rk.scores[k]), [o.run for o in objs], found.lengths, base)

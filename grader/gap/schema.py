@@ -4,7 +4,7 @@ Top level: ``schema``, ``dataset``, ``station``, ``inputs_sha256``, ``generated_
 ``baseline`` (the linear model compared against), ``noise`` (the noise floor),
 ``gap`` (where the linear model and the rig disagree, per run and segment),
 ``readoffs`` (the quantities students read off, measured vs predicted),
-``candidates`` (best first: effect, fitted parameters with units and 95 % intervals,
+``candidates`` (the verdict first, then by score: effect, fitted parameters with units and 95 % intervals (none for a held one),
 held-out NRMSE before and after, shrink), ``verdict`` and ``notes``.
 Fit measure: NRMSE = ‖y − ŷ‖ / ‖y − mean(y)‖ per run; ``fit_percent`` = 100·(1 − NRMSE),
 the fit of MATLAB's ``compare``. Overall fit values (``gap.nrmse``, ``fit_nrmse``) are the

@@ -40,10 +40,11 @@ def second_order(c: Candidate) -> Candidate:
 def fit_against_delay(objs: Sequence[RunObjective], base: RigParams, delay: FitState, spool: FitState, *,
                       executor: Executor | None = None) -> SearchResult:
     """The second-order spool fitted to the runs (and cross-validated) from the delay's optimum: its linear
-    coordinates, and the tau whose low-frequency phase lag is the delay's (delay = 2·zeta·tau)."""
+    coordinates, and the tau [s] whose low-frequency phase lag is the delay's (delay [s] = 2·zeta·tau)."""
     c = second_order(spool.candidate)
     p_delay, p_tau = delay.candidate.params[0], c.params[0]
     tau = float(delay.theta[N_LINEAR]) * p_delay.scale / (2.0 * SECOND_ORDER["zeta"])
     lo, hi = c.bounds()
     theta = np.clip(np.concatenate([delay.theta[:N_LINEAR], [tau / p_tau.scale]]), lo, hi)
-    return refit(objs, base, replace(spool, candidate=c, theta=theta), executor=executor)
+    start = FitState(c, spool.runs, theta, spool.res)  # a fresh fit: the residual is recomputed there
+    return refit(objs, base, start, executor=executor)

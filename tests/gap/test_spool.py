@@ -11,6 +11,7 @@ from grader.gap import spool
 from grader.gap.bench import make_case_dataset
 from grader.gap.candidates import Candidate, combine, make_candidates
 from grader.gap.diagnose import analyse
+from grader.gap.summary import summary
 from grader.gap.verdict import Scored, rank
 from grader.model.effects import EffectSet
 from grader.stations import load_station
@@ -32,10 +33,11 @@ def test_only_a_form_other_than_the_default_reports_its_held_parameters() -> Non
     lag = c["valve_dynamics"]
     assert lag.held() == {}  # the first-order lag: the effect's defaults, reported as before
     second = spool.second_order(lag)
-    assert second.held() == {"order": 2.0, "zeta": 0.7}
+    assert second.held() == {"order": (2.0, "dimensionless"), "zeta": (0.7, "dimensionless")}
     assert second.values(np.array([0.0, 0.0, 0.0, 0.5]))["valve_dynamics"] == {"order": 2.0, "zeta": 0.7,
                                                                                  "tau": pytest.approx(0.0025)}
-    assert combine(c["valve_hysteresis"], second).held() == {"valve_dynamics.order": 2.0, "valve_dynamics.zeta": 0.7}
+    assert combine(c["valve_hysteresis"], second).held() == {"valve_dynamics.order": (2.0, "dimensionless"),
+                                                             "valve_dynamics.zeta": (0.7, "dimensionless")}
     with pytest.raises(AssertionError):
         spool.second_order(c["sampling_delay"])
 
@@ -43,7 +45,8 @@ def test_only_a_form_other_than_the_default_reports_its_held_parameters() -> Non
 def test_a_kept_verdict_is_ranked_again_with_its_new_ties() -> None:
     """A delay that scores a little worse than a spool fitting as well stays the verdict when kept, and the spool is
     listed as a tie; ranked freely, the spool would win."""
-    cands = [_scored("none", 0.2, 0.2, 0), _scored("sampling_delay", 0.0205, 0.0201), _scored("valve_dynamics", 0.0200, 0.0200)]
+    cands = [_scored("none", 0.2, 0.2, 0), _scored("sampling_delay", 0.0205, 0.0201),
+             _scored("valve_dynamics", 0.0200, 0.0200)]
     assert cands[rank(cands, NOISE).verdict].effect == "valve_dynamics"
     kept = rank(cands, NOISE, verdict=1)
     assert kept.verdict == 1 and kept.order[0] == 1
@@ -62,7 +65,24 @@ def test_a_second_order_spool_is_named_beside_the_delay_it_looks_like(tmp_path: 
     assert d.verdict.effect == "sampling_delay"
     assert d.verdict.indistinguishable_from == ["valve_dynamics"]
     assert "valve_dynamics" in d.verdict.explanation and d.verdict.separating_test
+    assert d.candidates[0].effect == "sampling_delay"  # the verdict first, with its own fit
+    text = summary(d)  # each lookalike with its fitted parameters
+    assert "cannot tell it apart from: valve dynamics (tau = 2." in text and "order = 2, zeta = 0.7)" in text
     fitted = next(c for c in d.candidates if c.effect == "valve_dynamics").params
     assert fitted["order"].value == 2.0 and fitted["zeta"].value == 0.7 and fitted["order"].interval is None
     lo, hi = fitted["tau"].interval
     assert lo <= 0.0025 <= hi
+
+
+@pytest.mark.parametrize(("spool_score", "text"), [
+    (0.9, "sampling_delay explains the gap as well as any candidate"),  # kept over a lookalike that scores better
+    (1.1, "sampling_delay explains the gap best"),
+])
+def test_a_verdict_kept_over_a_better_scoring_lookalike_does_not_claim_to_explain_best(spool_score: float,
+                                                                                        text: str) -> None:
+    from grader.gap.diagnose import _verdict
+    from grader.gap.verdict import Ranking
+
+    rk = Ranking([1, 2, 0], np.array([5.0, 1.0, spool_score]), 1, 2, 0.0, 0.0, [2])
+    v = _verdict(rk, ["none", "sampling_delay", "valve_dynamics"])
+    assert v.explanation.startswith(text + "; the data cannot tell it apart from valve_dynamics")
