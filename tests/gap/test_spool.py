@@ -86,3 +86,30 @@ def test_a_verdict_kept_over_a_better_scoring_lookalike_does_not_claim_to_explai
     rk = Ranking([1, 2, 0], np.array([5.0, 1.0, spool_score]), 1, 2, 0.0, 0.0, [2])
     v = _verdict(rk, ["none", "sampling_delay", "valve_dynamics"])
     assert v.explanation.startswith(text + "; the data cannot tell it apart from valve_dynamics")
+
+
+def test_a_second_order_spool_that_fits_worse_than_the_lag_changes_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The second-order spool replaces the first-order lag only where it fits all runs better; otherwise the
+    search's fits, scores, report entries and ranking come back as they were."""
+    from types import SimpleNamespace
+
+    from grader.gap import diagnose
+    from grader.gap.crossval import CrossValidation
+    from grader.gap.fit import FitState
+    from grader.gap.search import SearchResult
+
+    c = _candidates()
+    runs, lin = tuple(range(6)), np.zeros(3)
+    states = [FitState(make_candidates(load_station("default").params(), [])[0], runs, lin, np.full(6, 0.05)),
+              FitState(c["sampling_delay"], runs, np.append(lin, 0.3), np.full(6, 0.010)),
+              FitState(c["valve_dynamics"], runs, np.append(lin, 0.2), np.full(6, 0.012))]
+    cv = CrossValidation(np.full(6, 0.05), np.zeros((6, 4)))
+    found = SearchResult(states, [cv] * 3, [1] * 6)
+    worse = FitState(spool.second_order(c["valve_dynamics"]), runs, np.append(lin, 0.2), np.full(6, 0.020))
+    monkeypatch.setattr(spool, "fit_against_delay", lambda *args, **kwargs: SearchResult([worse], [cv], [1] * 6))
+    scored = diagnose._scored(found)
+    rk = rank(scored, NOISE)
+    built: list = [object(), object(), object()]
+    base = SimpleNamespace(params=load_station("default").params())
+    out = diagnose._second_order_spool([], base, found, scored, built, rk, NOISE, cv, None)  # type: ignore[arg-type]
+    assert out[0] is found and out[1] is scored and out[2] is built and out[3] is rk
