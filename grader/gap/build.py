@@ -18,12 +18,14 @@ from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.lm import sumsq
 from grader.gap.noise import Noise
+from grader.gap.quantization import Quantization
 from grader.gap.runs import GapRun
 from grader.gap.schema import (
     BaselineModel,
     Candidate,
     Gap,
     NoiseFloor,
+    QuantizationInfo,
     ReadOff,
     RunGap,
     RunShrink,
@@ -111,6 +113,17 @@ def _on_grid(values: list[float], ref: float | None) -> list[float]:
     """Read-offs at 6 significant digits; an error [in] or overshoot [%] on the grid of its run's scale [in] or of
     100 %, so that a model's numerical zero (a steady-state error of 6e-10 in) is written as 0 on every CPU."""
     return [r6(v) for v in values] if ref is None else round_group([*values, ref])[:-1]
+
+
+def quantization_info(quant: Quantization | None) -> QuantizationInfo | None:
+    """The ADC's entry of ``diagnosis.json`` (steps and error band [in]), or None without a lattice."""
+    if quant is None:
+        return None
+    readoff = None if np.isnan(quant.readoff_share) else r6(quant.readoff_share)
+    return QuantizationInfo(adc_step=value(quant.step, "in"), share_of_step=r6(quant.share),
+                            share_of_readoff=readoff,
+                            bits=r6(quant.bits), limit_cycle=quant.limit_cycle, matters=quant.matters,
+                            steady_state_error_band=value(quant.step / 2, "in"))
 
 
 def critical_gain(b: Baseline) -> float | None:

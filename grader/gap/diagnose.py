@@ -31,7 +31,7 @@ from grader.gap.lm import sumsq
 from grader.gap.objective import RunObjective, objective
 from grader.gap.runs import GapRun, check_gains, current_demand, prepare_runs
 from grader.gap.schema import Candidate as SchemaCandidate
-from grader.gap.schema import Diagnosis, LoopGainInfo, QuantizationInfo, Verdict
+from grader.gap.schema import Diagnosis, Verdict
 from grader.gap.search import SearchResult, refit, search, second_effect
 from grader.gap.segments import Segment, segments_of
 from grader.gap.spread import spread
@@ -327,16 +327,6 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
     return cands, y_aug, verdict
 
 
-def _quant_info(quant: quant_mod.Quantization | None) -> QuantizationInfo | None:
-    if quant is None:
-        return None
-    readoff = None if np.isnan(quant.readoff_share) else build.r6(quant.readoff_share)
-    return QuantizationInfo(adc_step=build.value(quant.step, "in"), share_of_step=build.r6(quant.share),
-                            share_of_readoff=readoff,
-                            bits=build.r6(quant.bits), limit_cycle=quant.limit_cycle, matters=quant.matters,
-                            steady_state_error_band=build.value(quant.step / 2, "in"))
-
-
 def _notes(quant: quant_mod.Quantization | None, implied_kfb: float | None) -> list[str]:
     out = []
     if quant is not None and not quant.matters:
@@ -385,7 +375,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
         generated_by={"package": "grader", "version": __version__}, baseline=build.baseline_model(base),
         noise=build.noise_floor(noise), gap=gap,
         readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit),
-        candidates=cands, verdict=verdict, quantization=_quant_info(quant),
+        candidates=cands, verdict=verdict, quantization=build.quantization_info(quant),
         static_evidence={} if fr is None else fr.values(), loop_gain=lg,
         notes=[*base.notes, *_notes(quant, implied)],
     )
