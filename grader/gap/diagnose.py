@@ -167,9 +167,9 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
 def _better_alone(alone: Scored, bar: Scored) -> bool:
     """Whether the first effect refitted from a pair's end, ``alone``, replaces ``bar`` as what the pair must beat:
     its effect acts (:data:`grader.gap.verdict.ACTING`), its all-runs fit reached a better optimum (a lower mean
-    square) and it scores better held out. A refit that ended
-    in a poorer optimum (run A's 0289: a hysteresis refitted from its pair with a spool lag fitted all runs 50 times
-    worse) only has folds that happened to predict the left-out runs better."""
+    square) and it scores better held out. A refit that ended in a poorer optimum (run A's 0289: a hysteresis
+    refitted from its pair with a spool lag fitted all runs 50 times worse) only has folds that happened to predict
+    the left-out runs better."""
     return bool(alone.acts and np.mean(alone.fit**2) < np.mean(bar.fit**2) and scores([alone])[0] < scores([bar])[0])
 
 

@@ -170,7 +170,7 @@ def rank(cands: Sequence[Scored], noise_nrmse: Array, *, seed: int = 0, verdict:
     rest = [int(i) for i in np.argsort(s, kind="stable") if i != verdict]
     runner = next((i for i in rest if cands[i].effect == NONE or cands[i].acts), None)
     if cands[verdict].effect == NONE:
-        margin = float(-np.log(max(e, np.exp(-MAX_MARGIN))))
+        margin = max(float(-np.log(max(e, np.exp(-MAX_MARGIN)))), 0.0)  # 0: a kept none that an effect beats
     else:
         margin = max(float(np.log(s[runner] / s[verdict])), 0.0) if runner is not None else MAX_MARGIN
     return Ranking([verdict, *rest], s, verdict, runner, min(margin, MAX_MARGIN),

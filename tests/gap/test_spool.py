@@ -113,3 +113,10 @@ def test_a_second_order_spool_that_fits_worse_than_the_lag_changes_nothing(monke
     base = SimpleNamespace(params=load_station("default").params())
     out = diagnose._second_order_spool([], base, found, scored, built, rk, NOISE, cv, None)  # type: ignore[arg-type]
     assert out[0] is found and out[1] is scored and out[2] is built and out[3] is rk
+
+
+def test_a_kept_none_verdict_that_an_effect_beats_has_no_negative_margin() -> None:
+    cands = [_scored("none", 0.2, 0.2, 0), _scored("sampling_delay", 0.02, 0.02)]
+    assert rank(cands, NOISE).verdict == 1
+    kept = rank(cands, NOISE, verdict=0)
+    assert kept.verdict == 0 and kept.margin == 0.0
