@@ -121,8 +121,9 @@ def _significant(cand: SchemaCandidate, effect: str) -> bool:
 
 def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, others: Sequence[Candidate],
             floor_nrmse: Array, before: CrossValidation, executor: Executor | None,
-            first_scored: Scored) -> tuple[_Second | None, SearchResult | None]:
-    """(the best second effect on top of ``first``, ``first`` refitted to a better optimum, or None for each).
+            first_scored: Scored) -> tuple[_Second | None, tuple[SearchResult, Scored] | None]:
+    """(the best second effect on top of ``first``, ``first`` refitted to a better optimum with its scores, or None
+    for each).
 
     The second effect: the best addition if it explains clearly more than ``first`` alone (beyond the
     floor ``first`` leaves, by :data:`SECOND_GAIN`), else None; an addition whose parameter's 95 % interval
@@ -152,7 +153,7 @@ def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: Fi
         return None, None
     refitted = _alone_from(objs, base, first, found.states[eligible[pick]], executor)
     alone = _scored(refitted)[0]
-    better = refitted if _better_alone(alone, first_scored) else None
+    better = (refitted, alone) if _better_alone(alone, first_scored) else None
     if _better_alone(alone, options[ref]):
         options[ref] = alone
         pick, _, _ = decide(options, floor_nrmse, reference=ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
@@ -250,18 +251,19 @@ def _second_order_spool(objs: Sequence[RunObjective], base: baseline_mod.Baselin
     s_alt = _scored(alt)[0]
     if np.mean(s_alt.fit**2) >= np.mean(scored[k].fit**2):
         return found, scored, built, rk
-    return _replaced(found, scored, built, rk.verdict, alt, noise_nrmse, before, objs, base)
+    return _replaced(found, scored, built, rk.verdict, alt, s_alt, noise_nrmse, before, objs, base)
 
 
 def _replaced(found: SearchResult, scored: list[Scored], built: list[SchemaCandidate], verdict: int,
-              alt: SearchResult, noise_nrmse: Array, before: CrossValidation, objs: Sequence[RunObjective],
-              base: baseline_mod.Baseline) -> tuple[SearchResult, list[Scored], list[SchemaCandidate], Ranking]:
-    """The search's fit of ``alt``'s one candidate (an effect of ``found``) replaced by ``alt``'s: its state, scores
-    and report entry, and ``verdict`` ranked again, kept."""
+              alt: SearchResult, alt_scored: Scored, noise_nrmse: Array, before: CrossValidation,
+              objs: Sequence[RunObjective], base: baseline_mod.Baseline
+              ) -> tuple[SearchResult, list[Scored], list[SchemaCandidate], Ranking]:
+    """The search's fit of ``alt``'s one candidate (an effect of ``found``) replaced by ``alt``'s (scored as
+    ``alt_scored``): its state, scores and report entry, and ``verdict`` ranked again, kept."""
     k = [s.candidate.effect for s in found.states].index(alt.states[0].candidate.effect)
     states = [*found.states[:k], alt.states[0], *found.states[k + 1:]]
     cvs = [*found.cvs[:k], alt.cvs[0], *found.cvs[k + 1:]]
-    scored = [*scored[:k], _scored(alt)[0], *scored[k + 1:]]
+    scored = [*scored[:k], alt_scored, *scored[k + 1:]]
     rk = rank(scored, noise_nrmse, verdict=verdict)
     entry = build.candidate(states[k], cvs[k], before, float(rk.scores[k]), [o.run for o in objs], found.lengths, base)
     return replace(found, states=states, cvs=cvs), scored, [*built[:k], entry, *built[k + 1:]], rk
@@ -300,7 +302,7 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
                 extra, better = _second(objs, base, first, others, floor, before, executor, scored[rk.verdict])
                 if better is not None and not why:  # the verdict's own fit: the better optimum its pair search
                     # led to (a tie the friction test broke keeps its ranking)
-                    found, scored, built, rk = _replaced(found, scored, built, rk.verdict, better, noise_nrmse,
+                    found, scored, built, rk = _replaced(found, scored, built, rk.verdict, *better, noise_nrmse,
                                                          before, objs, base)
         elif second is not False and _needs_second(found.states[rk.verdict], found.lengths, np.sqrt(NONE_GAP) * noise_nrmse):
             rk, extra = _pair_beyond_none(objs, base, found, rk, candidates, noise_nrmse, sigma, before, executor)

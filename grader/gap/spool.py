@@ -24,11 +24,12 @@ from grader.gap.candidates import N_LINEAR, Candidate
 from grader.gap.fit import FitState
 from grader.gap.objective import RunObjective
 from grader.gap.search import SearchResult, refit
+from grader.model.effects import EFFECTS
 from grader.model.params import RigParams
 
 DELAY, SPOOL = "sampling_delay", "valve_dynamics"
-#: The second-order form's held parameters; its damping is the effects' default.
-SECOND_ORDER = {"order": 2.0, "zeta": 0.7}
+#: The second-order form's held parameters; its damping is the effects' default (0.7).
+SECOND_ORDER = {"order": 2.0, "zeta": EFFECTS[SPOOL].param("zeta").default}
 
 
 def second_order(c: Candidate) -> Candidate:
