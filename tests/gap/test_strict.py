@@ -62,6 +62,29 @@ def test_report_counts_strict_top1_top2_and_false_positives_on_none() -> None:
     assert row.split()[1] == "1" and row.endswith("0.0 %")  # confusion matrix: called none once
 
 
+def _wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """Wilson's score interval in closed form [%] (an independent path to statsmodels')."""
+    p = k / n
+    centre, half = (p + z**2 / (2 * n)) / (1 + z**2 / n), z / (1 + z**2 / n) * math.sqrt(p * (1 - p) / n + z**2 / (4 * n**2))
+    return 100 * (centre - half), 100 * (centre + half)
+
+
+def test_report_gives_each_rate_its_sampling_interval() -> None:
+    """One false positive in 25 datasets is 4 %, but the sample cannot tell that from 0.7 % or 20 %: the report
+    says so, with Wilson's interval for every headline rate and every parameter's coverage."""
+    nones = [_case("none", "none")] * 24 + [_case("none", "viscous_friction")]
+    delays = [replace(_case("sampling_delay", "sampling_delay"), params={"sampling_delay:delay": (1.0, 1.0, lo, 1.1)})
+              for lo in [0.9] * 9 + [1.05]]
+    text = render(nones + delays)
+    lo, hi = _wilson(1, 25)
+    assert f"false positives on none 1/25, {lo:.1f}–{hi:.1f} %" in text
+    lo, hi = _wilson(34, 35)
+    assert f"strict top-1 34/35, {lo:.1f}–{hi:.1f} %" in text
+    lo, hi = _wilson(9, 10)
+    assert f"coverage  90.0 %  (n = 10; Wilson 95 %: {lo:.1f}–{hi:.1f} %)" in text
+    assert "both named –" in text  # no two-effect datasets: no rate, no interval
+
+
 def _settled_run(q: float, cycle_counts: int, command: float = 0.1) -> GapRun:
     """A step run whose readings sit on a lattice of step ``q`` and end toggling over ``cycle_counts`` counts."""
     t = np.arange(0.0, 1.0, 0.001)
