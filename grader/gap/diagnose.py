@@ -171,7 +171,7 @@ def _better_alone(alone: Scored, bar: Scored) -> bool:
     square) and it scores better held out. A refit that ended in a poorer optimum (run A's 0289: a hysteresis
     refitted from its pair with a spool lag fitted all runs 50 times worse) only has folds that happened to predict
     the left-out runs better."""
-    return bool(alone.acts and np.mean(alone.fit**2) < np.mean(bar.fit**2) and scores([alone])[0] < scores([bar])[0])
+    return bool(alone.acts and alone.fit_ms < bar.fit_ms and scores([alone])[0] < scores([bar])[0])
 
 
 def _alone_from(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, pair: FitState,
@@ -249,7 +249,7 @@ def _second_order_spool(objs: Sequence[RunObjective], base: baseline_mod.Baselin
     k = [s.candidate.effect for s in found.states].index(spool.SPOOL)
     alt = spool.fit_against_delay(objs, base.params, found.states[rk.verdict], found.states[k], executor=executor)
     s_alt = _scored(alt)[0]
-    if np.mean(s_alt.fit**2) >= np.mean(scored[k].fit**2):
+    if s_alt.fit_ms >= scored[k].fit_ms:
         return found, scored, built, rk
     return _replaced(found, scored, built, rk.verdict, alt, s_alt, noise_nrmse, before, objs, base)
 
@@ -367,8 +367,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
                                           second=second, parallel=parallel)
     lg = None
     if fr is None:  # without a friction test, the flow test against the runs' loop gain
-        lg = evidence.loop_gain(ds, next(c for c in cands if c.effect == verdict.effect), base.params,
-                                build.t_quantile(len(runs)))
+        lg = evidence.loop_gain(ds, next(c for c in cands if c.effect == verdict.effect), base.params)
     verdict = evidence.viscous_from_loop_gain(evidence.viscous(verdict, fr), lg)
     verdict = evidence.quantized(evidence.viscous_unexcluded(verdict, fr, lg), quant)
     gain_unit = "dimensionless" if ds.manifest.feedback == "volts" else "V/in"

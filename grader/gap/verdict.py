@@ -68,6 +68,11 @@ class Scored:
     strength: float  # fitted strength of the (last added) effect, a fraction of its realistic range's top
 
     @property
+    def fit_ms(self) -> float:
+        """Mean square over runs of the all-runs fit's NRMSE (runs weighted alike)."""
+        return float(np.mean(self.fit**2))
+
+    @property
     def acts(self) -> bool:
         """Whether the effect is fitted at a strength that acts (:data:`ACTING`)."""
         return self.strength >= ACTING

@@ -7,13 +7,15 @@ import math
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from grader.gap.diagnose import analyse
-from grader.gap.evidence import B_REALISTIC, DEFICIT_Z, Z95, names_viscous, _roots, viscous_b, \
+from grader.gap.evidence import B_REALISTIC, DEFICIT_Z, Z95, _log_se, _roots, names_viscous, viscous_b, \
     viscous_from_loop_gain
+from grader.identify import PotCalibration
 from grader.gap.schema import LoopGainInfo, Value, Verdict
 from grader.gap.summary import summary
 from grader.stations import load_station
@@ -35,6 +37,24 @@ def test_the_damping_found_is_the_rigs_own(B: float, kce_scale: float) -> None:
     assert exact and found == pytest.approx(B, rel=1e-4)
     assert _roots(seen, seen.Kq)[0] == pytest.approx(0.0, abs=1e-9)
     assert not _roots(seen, rig.Kq * 3)[2]  # a deficit of two thirds: no viscous friction explains it
+
+
+def test_a_calibrations_standard_error_counts_its_few_degrees_of_freedom() -> None:
+    """Kpot from the lab's 10-point calibration: its error in units of the standard error _log_se gives (from
+    the t interval's width) passes 1.96 on about 5 % of calibrations, as the deficit's z assumes; in units of the
+    regression's own standard error it passes on about 8 % (Student's t with 8 degrees of freedom)."""
+    rng = np.random.default_rng(3)
+    position = np.linspace(0.0, 4.5, 10)  # [in]
+    kpot = 0.5  # [V/in]
+    n, own, raw = 4000, 0, 0
+    for _ in range(n):
+        k = PotCalibration().fit(position, 4.2 + kpot * position + rng.normal(0.0, 0.002, position.size)).Kpot_
+        err = math.log(k.value / kpot)
+        own += abs(err) > Z95 * _log_se(k.interval)
+        raw += abs(err) > Z95 * k.se / k.value
+    assert 0.04 < own / n < 0.06
+    assert 0.07 < raw / n < 0.095
+    assert _log_se(None) == 0.0 and _log_se((0.0, 1.0)) == 0.0
 
 
 def _without_friction_test(src: Path, dst: Path) -> Path:
