@@ -35,6 +35,7 @@ from grader.gap.quantization import Quantization
 from grader.gap.schema import Candidate, LoopGainInfo, Value, Verdict
 from grader.gap.separating import separating_test
 from grader.gap.verdict import Ranking
+from grader.identify.estimate import Estimate
 from grader.model.effects import EFFECTS
 from grader.model.linear import plant_coeffs
 from grader.model.params import RigParams
@@ -45,8 +46,10 @@ VISIBLE = 0.1  # of the realistic range's top
 #: spread 1.03: it is a unit normal, so 2.5 (one-sided) names viscous friction on 0.6 % of rigs without it, and
 #: leaves the rest of the 3 % false-positive budget to the runs. Beside an effect the runs name, over 236 rigs
 #: (seeds 300 and 500) the z spread 1.3 and never passed 2.32. With each standard error taken from its t interval's
-#: width (:func:`_log_se`), on 175 rigs with no effect (seed 900's 150, seed 300's 25) z had mean −0.05 and spread
-#: 1.01 (1.07 with the standard errors themselves, the calibration's Kpot's z alone spreading 1.21).
+#: width (:func:`_rel_se`, :func:`_log_se`), on 175 rigs with no effect (seed 900's 150, seed 300's 25) z had mean
+#: −0.05 and spread 1.01 (1.07 with the standard errors themselves, the calibration's Kpot's z alone spreading 1.21),
+#: and passed 2.5 on 2 of them (1.1 %, Wilson 95 % 0.3–4.1 %): matching the intervals' widths fixes the spread, while
+#: the t tails beyond 2.5 stay a little heavier than a normal's (0.6 %).
 DEFICIT_Z = 2.5
 Z95 = 1.959964
 #: Realistic rigs (docs/reference/rig-space.md): Kce [in³/s/psi] at least this, B [lbf·s/in] at most the top of
@@ -171,18 +174,27 @@ def viscous_b(runs: RigParams, d: float, sigma: float) -> tuple[float, float, fl
     return b, lo, hi, explained and lo > 0, other[0] if larger else None
 
 
-def _log_se(interval: tuple[float, float] | None) -> float:
-    """Standard error of ln(value) that a normal 95 % interval as wide as ``interval`` has (0 without one). Each
-    estimate's interval is Student's t of its own degrees of freedom (the calibration's Kpot has 8, the runs'
-    jackknife 5, the flow test's about 30); so their heavier tails widen the standard error the deficit's z is
-    counted in, and z is a unit normal on rigs without viscous friction (:data:`DEFICIT_Z`)."""
-    if interval is None or not 0 < interval[0] <= interval[1] or not np.isfinite(interval[1]):
+def _rel_se(est: Estimate) -> float:
+    """Relative standard error [-] that a normal 95 % interval as wide as ``est``'s has: (hi − lo)/(2·Z95·value).
+    A static test's interval is Student's t of its own degrees of freedom (the calibration's Kpot has 8, the flow
+    test about 30), so its heavier tails widen the standard error the deficit's z is counted in; inf where the
+    interval is not finite (too few readings: the test can then show no deficit)."""
+    lo, hi = est.interval
+    width = hi - lo
+    return float(width / (2 * Z95 * abs(est.value))) if est.value != 0 and np.isfinite(width) else math.inf
+
+
+def _log_se(v: Value) -> float:
+    """Standard error of ln(value) that a normal 95 % interval as wide as the runs' ``v`` has (0 without one): its
+    interval is symmetric in ln, built with the t quantile of the runs' jackknife (5 degrees of freedom for 6 runs,
+    :func:`grader.gap.build.value`)."""
+    if v.interval is None or v.interval[0] <= 0:
         return 0.0
-    return float(np.log(interval[1] / interval[0])) / (2 * Z95)
+    return float(np.log(v.interval[1] / v.interval[0])) / (2 * Z95)
 
 
 def _kpot_se(ds: Dataset) -> float:
-    """:func:`_log_se` of the calibration's Kpot where the loop gain carries it (volts feedback), else 0."""
+    """:func:`_rel_se` of the calibration's Kpot where the loop gain carries it (volts feedback), else 0."""
     if ds.manifest.feedback != "volts" or ds.calibration is None:
         return 0.0
     from grader.identify import PotCalibration
@@ -191,12 +203,13 @@ def _kpot_se(ds: Dataset) -> float:
         k = PotCalibration().fit(ds.calibration["position"], ds.calibration["voltage"]).Kpot_
     except (IdentificationError, ValueError, ArithmeticError):
         return 0.0
-    return _log_se(k.interval)
+    return _rel_se(k)
 
 
 def loop_gain(ds: Dataset, cand: Candidate, base: RigParams) -> LoopGainInfo | None:
     """The flow test's Kq against the Kq of candidate ``cand`` fitted to the runs (its linear model around
-    ``base``), and the viscous friction that reconciles them (module docstring); None without a usable flow test."""
+    ``base``), and the viscous friction that reconciles them (module docstring); None without a usable flow test,
+    or where the flow test's or the calibration's interval is not finite (no deficit could be told from noise)."""
     if ds.flow_test is None:
         return None
     from grader.identify.flow import FlowGainFit
@@ -209,7 +222,9 @@ def loop_gain(ds: Dataset, cand: Candidate, base: RigParams) -> LoopGainInfo | N
     runs_kq = cand.linear_params["Kq"]
     flow_kq = build.value(flow.value, "in**3/s/mA", flow.interval)
     d = float(np.log(flow.value / runs.Kq))
-    sigma = float(np.sqrt(_log_se(flow.interval) ** 2 + _log_se(runs_kq.interval) ** 2 + _kpot_se(ds) ** 2))
+    sigma = float(np.sqrt(_rel_se(flow) ** 2 + _log_se(runs_kq) ** 2 + _kpot_se(ds) ** 2))
+    if not np.isfinite(sigma):
+        return None
     z = d / sigma if sigma > 0 else 0.0
     b, lo, hi, explained, larger = viscous_b(runs, d, sigma)
     return LoopGainInfo(flow_test_Kq=flow_kq, runs_Kq=runs_kq, candidate=cand.effect,

@@ -146,7 +146,7 @@ class LoopGainInfo(_Frozen):
     runs_Kq: Value = Field(description="Kq of the linear model re-fitted to the runs with candidate `candidate`")
     candidate: str = Field("none", description="the candidate whose fit gave runs_Kq: 'none', or the one effect the runs name")
     deficit: float = Field(description="1 − runs_Kq / flow_test_Kq")
-    deficit_z: float = Field(description="ln(flow_test_Kq / runs_Kq) in standard errors of the intervals combined (each as wide as a normal 95 % interval; with volts feedback, the calibration's Kpot's too)")
+    deficit_z: float = Field(description="ln(flow_test_Kq / runs_Kq) in standard errors of the estimates combined (each the standard error of a normal 95 % interval as wide as its t interval; with volts feedback, the calibration's Kpot's too)")
     viscous_B: Value = Field(description="viscous friction that gives the runs' closed loop at the flow test's Kq")
     names_viscous: bool = Field(description="the deficit names viscous friction (at least 2.5 standard errors, and a B inside its interval explains it)")
     viscous_B_larger_root: Value | None = Field(

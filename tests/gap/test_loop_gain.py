@@ -13,11 +13,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from grader.gap.diagnose import analyse
-from grader.gap.evidence import B_REALISTIC, DEFICIT_Z, Z95, _log_se, _roots, names_viscous, viscous_b, \
+from grader.gap.evidence import B_REALISTIC, DEFICIT_Z, Z95, _log_se, _rel_se, _roots, names_viscous, viscous_b, \
     viscous_from_loop_gain
-from grader.identify import PotCalibration
 from grader.gap.schema import LoopGainInfo, Value, Verdict
 from grader.gap.summary import summary
+from grader.identify import PotCalibration
+from grader.identify.estimate import Estimate
 from grader.stations import load_station
 
 from .conftest import FEW, MakeDataset, seen_without_b
@@ -40,21 +41,31 @@ def test_the_damping_found_is_the_rigs_own(B: float, kce_scale: float) -> None:
 
 
 def test_a_calibrations_standard_error_counts_its_few_degrees_of_freedom() -> None:
-    """Kpot from the lab's 10-point calibration: its error in units of the standard error _log_se gives (from
+    """Kpot from the lab's 10-point calibration: its error in units of the standard error _rel_se gives (from
     the t interval's width) passes 1.96 on about 5 % of calibrations, as the deficit's z assumes; in units of the
-    regression's own standard error it passes on about 8 % (Student's t with 8 degrees of freedom)."""
+    regression's own standard error it passes on about 8.6 % (Student's t with 8 degrees of freedom)."""
     rng = np.random.default_rng(3)
     position = np.linspace(0.0, 4.5, 10)  # [in]
     kpot = 0.5  # [V/in]
     n, own, raw = 4000, 0, 0
     for _ in range(n):
         k = PotCalibration().fit(position, 4.2 + kpot * position + rng.normal(0.0, 0.002, position.size)).Kpot_
-        err = math.log(k.value / kpot)
-        own += abs(err) > Z95 * _log_se(k.interval)
+        err = k.value / kpot - 1.0
+        own += abs(err) > Z95 * _rel_se(k)
         raw += abs(err) > Z95 * k.se / k.value
-    assert 0.04 < own / n < 0.06
-    assert 0.07 < raw / n < 0.095
-    assert _log_se(None) == 0.0 and _log_se((0.0, 1.0)) == 0.0
+    assert 0.04 < own / n < 0.06  # binomial spread 0.0034 about 0.05
+    assert 0.073 < raw / n < 0.099  # spread 0.0044 about 0.0857
+
+
+def test_an_uncertain_static_test_widens_the_deficits_error_and_never_hides_it() -> None:
+    """An interval that reaches below 0 (a t quantile of 12.7 with one degree of freedom) still gives its
+    width's standard error, and one that is not finite gives an infinite one (loop_gain then compares nothing);
+    the runs' Kq without an interval adds none."""
+    wide = Estimate(0.03, "in**3/s/mA", 0.01, "fit", dof=1)
+    assert wide.interval[0] < 0
+    assert _rel_se(wide) == pytest.approx(12.7062 * 0.01 / (Z95 * 0.03), rel=1e-4)
+    assert math.isinf(_rel_se(Estimate(0.03, "in**3/s/mA", float("nan"), "fit", dof=0)))
+    assert _log_se(Value(value=0.03, unit="in**3/s/mA")) == 0.0
 
 
 def _without_friction_test(src: Path, dst: Path) -> Path:
