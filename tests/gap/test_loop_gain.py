@@ -12,9 +12,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from grader.datasets import load
 from grader.gap.diagnose import analyse
-from grader.gap.evidence import B_REALISTIC, DEFICIT_Z, Z95, _log_se, _rel_se, _roots, names_viscous, viscous_b, \
-    viscous_from_loop_gain
+from grader.gap.evidence import B_REALISTIC, DEFICIT_Z, Z95, _log_se, _rel_se, _roots, loop_gain, names_viscous, \
+    viscous_b, viscous_from_loop_gain
 from grader.gap.schema import LoopGainInfo, Value, Verdict
 from grader.gap.summary import summary
 from grader.identify import PotCalibration
@@ -95,6 +96,15 @@ def test_viscous_friction_is_named_from_the_loop_gain_and_its_b_covers_the_truth
     wide = d.model_copy(update={"loop_gain": d.loop_gain.model_copy(update={"viscous_B_larger_root": alt})})
     assert "a rig with more viscous friction and less leakage, B = 1.31 lbf·s/in, gives the same closed loop" \
         in summary(wide)
+    # a calibration of three readings (one degree of freedom, t = 12.7) widens the deficit's error: z falls
+    cand = next(c for c in d.candidates if c.effect == d.loop_gain.candidate)
+    base = load_station("default").params()
+    full = loop_gain(load(folder), cand, base)
+    calibration = folder / json.loads((folder / "manifest.json").read_text(encoding="utf-8"))["calibration"]
+    calibration.write_text("\n".join(calibration.read_text(encoding="utf-8").splitlines()[:4]) + "\n", encoding="utf-8")
+    short = loop_gain(load(folder), cand, base)
+    assert full is not None and short is not None and full.deficit == pytest.approx(d.loop_gain.deficit, abs=1e-3)
+    assert 0 < short.deficit_z < full.deficit_z / 3 and not short.names_viscous
 
 
 def test_no_effect_names_nothing_from_the_loop_gain(make: MakeDataset, tmp_path: Path) -> None:
