@@ -35,7 +35,7 @@ from grader.gap.quantization import Quantization
 from grader.gap.schema import Candidate, LoopGainInfo, Value, Verdict
 from grader.gap.separating import separating_test
 from grader.gap.verdict import Ranking
-from grader.identify.estimate import Estimate
+from grader.identify.estimate import Z95, Estimate
 from grader.model.effects import EFFECTS
 from grader.model.linear import plant_coeffs
 from grader.model.params import RigParams
@@ -51,7 +51,6 @@ VISIBLE = 0.1  # of the realistic range's top
 #: and passed 2.5 on 2 of them (1.1 %, Wilson 95 % 0.3–4.1 %): matching the intervals' widths fixes the spread, while
 #: the t tails beyond 2.5 stay a little heavier than a normal's (0.6 %).
 DEFICIT_Z = 2.5
-Z95 = 1.959964
 #: Realistic rigs (docs/reference/rig-space.md): Kce [in³/s/psi] at least this, B [lbf·s/in] at most the top of
 #: viscous friction's realistic range.
 KCE_REALISTIC = 1e-4
