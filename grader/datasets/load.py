@@ -71,7 +71,7 @@ def read_manifest(root: Path) -> tuple[Manifest, Path]:
     if path.stat().st_size > MAX_MANIFEST_BYTES:
         raise DatasetError(f"{path.name}: manifest larger than 1 MB")
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte-order mark (Windows editors) is not content
         raw = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
     except (json.JSONDecodeError, yaml.YAMLError, UnicodeDecodeError) as exc:
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__

@@ -86,6 +86,12 @@ class ControllerSpec(BaseModel):
     Ki: float = Field(default=0.0, ge=0, allow_inf_nan=False)
     Kd: float = Field(default=0.0, ge=0, allow_inf_nan=False)
 
+    @model_validator(mode="after")
+    def _holds_a_position(self) -> ControllerSpec:
+        if self.Kp <= 0 and self.Ki <= 0:
+            raise ValueError("needs Kp > 0 or Ki > 0 (a loop with neither does not hold a position)")
+        return self
+
 
 class RunSpec(BaseModel):
     """One closed-loop run: its name, CSV file, kind and controller gains."""

@@ -156,14 +156,20 @@ def from_runs(ds: Dataset, runs: Sequence[GapRun], implied_kfb: float | None) ->
         kpot = 1.0
         if volts:
             notes.append("no calibration file and no u column: Kpot set to 1 V/in; only Kpot·Kq is identified")
-    if ds.flow_test is not None:
-        kq = FlowGainFit(Kamp=ds.given["Kamp"]).fit(ds.flow_test["input"], ds.flow_test["flow"]).Kq_.value
+    kq, start_kq = None, "Kq fitted to the runs (nominal start 0.5 gpm / rated current)"
+    if ds.flow_test is None:
+        notes.append(f"no flow test: {start_kq}")
     else:
-        kq = RATED_FLOW / ds.given["i_max"]
-        notes.append("no flow test: Kq fitted to the runs (nominal start 0.5 gpm / rated current)")
-    typical = _given_params(ds, kq, kpot, TYPICAL["beta_over_Vt"], TYPICAL["Kce"])
+        try:
+            kq = FlowGainFit(Kamp=ds.given["Kamp"]).fit(ds.flow_test["input"], ds.flow_test["flow"]).Kq_.value
+        except IdentificationError as exc:  # a one-sided or flat flow test: the runs still give the loop gain
+            reason = str(exc).removeprefix("flow test: ")
+            notes.append(f"flow test {ds.manifest.flow_test} not used ({reason}): {start_kq}")
+    fit_kq = kq is None
+    typical = _given_params(ds, RATED_FLOW / ds.given["i_max"] if kq is None else kq, kpot, TYPICAL["beta_over_Vt"],
+                            TYPICAL["Kce"])
     osc, start = _oscillation(runs, typical)
-    p = fit_loop(runs, osc or typical, fit_kq=ds.flow_test is None, bv_span=LOG_SPAN if osc is None else OSC_SPAN)
+    p = fit_loop(runs, osc or typical, fit_kq=fit_kq, bv_span=LOG_SPAN if osc is None else OSC_SPAN)
     return Baseline(p, "runs", f"linear loop fitted to the runs, starting from the {start}", tuple(notes))
 
 

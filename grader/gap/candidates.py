@@ -25,6 +25,7 @@ from grader.model.params import RigParams
 
 Array = NDArray[np.float64]
 NONE = "none"
+SATURATION = "valve_saturation"
 #: Canonical effects that describe the sensor, not the physics: part of the noise floor.
 NOISE_EFFECTS = ("sensor_noise", "sensor_quantization")
 #: Not fitted to the runs unless asked for: with the loop gain free, viscous friction is exactly a larger Kce
@@ -178,7 +179,7 @@ def make_candidates(base: RigParams, names: Sequence[str] | None = None, *, dema
     wanted = [n for n in physical_effects() if n not in NOT_FROM_RUNS] if names is None else list(names)
     out = [Candidate(NONE)]
     for name in wanted:
-        if name == NONE:
+        if name == NONE or (name == SATURATION and not saturation_can_act(demand)):
             continue
         spec = EFFECTS[name]
         fixed = FIXED.get(name, {})
@@ -186,6 +187,12 @@ def make_candidates(base: RigParams, names: Sequence[str] | None = None, *, dema
         params = tuple(_fit_param(name, p, upper.get(p.name), demand) for p in spec.params if p.name not in fixed)
         out.append(Candidate(name, params, {name: fixed} if fixed else {}, (name,)))
     return out
+
+
+def saturation_can_act(demand: float | None) -> bool:
+    """Whether a current limit within its realistic range can cut the runs' largest current ``demand`` [mA]
+    (None: not known, assumed so): a limit at its least value or above clips nothing smaller."""
+    return demand is None or demand > EFFECTS[SATURATION].param("i_max").lo
 
 
 def physical_effects() -> tuple[str, ...]:

@@ -24,7 +24,7 @@ from grader.gap import noise as noise_mod
 from grader.gap import quantization as quant_mod
 from grader.gap import spool
 from grader.gap.backend import Backend, Point, worker
-from grader.gap.candidates import NONE, NOT_FROM_RUNS, Candidate, make_candidates
+from grader.gap.candidates import NONE, NOT_FROM_RUNS, SATURATION, Candidate, make_candidates, saturation_can_act
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.lm import sumsq
@@ -329,8 +329,12 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
     return cands, y_aug, verdict
 
 
-def _notes(quant: quant_mod.Quantization | None, implied_kfb: float | None) -> list[str]:
+def _notes(quant: quant_mod.Quantization | None, implied_kfb: float | None, demand: float) -> list[str]:
     out = []
+    if not saturation_can_act(demand):
+        lo = EFFECTS[SATURATION].param("i_max").lo
+        out.append(f"valve saturation was not tried: the runs ask the valve for at most {demand:.3g} mA, and a current "
+                   f"limit of {lo:g} mA or more clips nothing smaller")
     if quant is not None and not quant.matters:
         out.append(quant.text())
     if implied_kfb is None:
@@ -378,7 +382,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
         readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit),
         candidates=cands, verdict=verdict, quantization=build.quantization_info(quant),
         static_evidence={} if fr is None else fr.values(), loop_gain=lg,
-        notes=[*base.notes, *_notes(quant, implied)],
+        notes=[*base.notes, *_notes(quant, implied, demand)],
     )
     return Analysis(diag, runs, segs, y_lin, y_aug)
 

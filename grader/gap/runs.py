@@ -15,11 +15,12 @@ and a manifest gain the recorded controller output ``u`` contradicts.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import convolve1d
+from scipy.optimize import least_squares
 from scipy.signal import savgol_coeffs
 
 from grader.datasets import Dataset, Run
@@ -86,14 +87,39 @@ def command_start(t: Array, r: Array) -> float:
     return float(t[moved[0]]) if moved.size else float(t[0])
 
 
+def _printed_resolution(t: Array) -> Array:
+    """Per row, the largest power of ten from 1 s down to 1 ns of which its time stamp [s] is a multiple: the
+    resolution it was printed with (a logger writing ``%.3f`` rounds a 1.44 ms grid to whole milliseconds)."""
+    res = np.zeros(t.size)
+    for d in range(9, -1, -1):
+        q = 10.0**-d
+        res[np.abs(t / q - np.round(t / q)) < 1e-6] = q
+    return res
+
+
+def sample_times(run: Run, T: float) -> Array:
+    """The run's time stamps [s] as controller samples every ``T``: as recorded where each row lies within 5 % of
+    T of its sample; else the grid t₀ + k·T, where each row lies on it within half its printed resolution (never
+    half a sample or more). Raises naming the first row off the grid otherwise."""
+    t, dt = run.t, np.diff(run.t)
+    if abs(float(np.median(dt)) - T) <= 0.01 * T and np.max(np.abs(dt - T)) <= 0.05 * T:
+        return t
+    k, half = np.arange(t.size), 0.5 * _printed_resolution(t)
+    grid = float(np.median(t - k * T)) + k * T
+    if np.all(np.abs(t - grid) <= np.minimum(0.05 * T + half, 0.499 * T)):
+        return grid
+    gap = np.flatnonzero(np.abs(dt - T) > np.minimum(0.05 * T + half[1:] + half[:-1], 0.998 * T))  # rows apart
+    where = f" (row {gap[0] + 3} is {dt[gap[0]] * 1e3:.4g} ms after the one before)" if gap.size else ""
+    raise DiagnosisError(
+        f"run {run.name} ({run.spec.file}): rows are {float(np.median(dt)) * 1e3:.4g} ms apart, not evenly at the "
+        f"manifest's sample_time of {T * 1e3:g} ms{where}; the diagnosis needs one row per controller sample"
+    )
+
+
 def _on_grid(run: Run, T: float) -> GapRun:
-    """The run's rows as controller samples (one row per sample, evenly spaced)."""
-    dt = float(np.median(np.diff(run.t)))
-    if abs(dt - T) > 0.01 * T or np.max(np.abs(np.diff(run.t) - T)) > 0.05 * T:
-        raise DiagnosisError(
-            f"run {run.name} ({run.spec.file}): rows are {dt * 1e3:.4g} ms apart, not evenly at the manifest's "
-            f"sample_time of {T * 1e3:g} ms; the diagnosis needs one row per controller sample"
-        )
+    """The run's rows as controller samples (one row per sample, evenly spaced: :func:`sample_times`)."""
+    t = sample_times(run, T)
+    run = replace(run, t=t) if t is not run.t else run
     start = command_start(run.t, run.r)
     if run.t[-1] - start < MIN_DURATION or run.t.size < 50:
         raise DiagnosisError(
@@ -134,7 +160,14 @@ def implied_feedback_gain(run: GapRun, T: float) -> float | None:
     if use.sum() < 20 or not np.any(np.abs(run.u[use]) > 1e-6):
         return None
     b, u = basis[use], run.u[use]
-    return float(np.sum(b * u) / np.sum(b * b))
+    k0 = float(np.sum(b * u) / np.sum(b * b))
+    ratio = float(np.median(u / b))
+    scale = 1.4826 * float(np.median(np.abs(u - ratio * b)))  # the rows' typical misfit [V], a MAD
+    if scale <= 0:
+        return ratio
+    # robust to a few rows whose recorded y the controller never saw (a logger glitch): soft-L1 loss
+    fit = least_squares(lambda k: k[0] * b - u, [ratio if abs(ratio) > 0 else k0], loss="soft_l1", f_scale=scale)
+    return float(fit.x[0])
 
 
 def check_gains(runs: list[GapRun], k_fb: float | None, T: float) -> float | None:

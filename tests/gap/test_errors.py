@@ -42,6 +42,17 @@ def _slow_clock(data: dict) -> None:
     data["given"]["sample_time"] = "2 ms"
 
 
+def _no_gain(data: dict) -> None:
+    next(r for r in data["runs"] if r["name"] == "ramp_p")["controller"] = {"Kp": 0, "Kd": 0.01}
+
+
+def _flat_calibration(root: Path) -> None:
+    path = root / "calibration.csv"
+    lines = path.read_text(encoding="utf-8").splitlines()
+    path.write_text("\n".join([lines[0], *(f"{line.split(',')[0]},5.0" for line in lines[1:] if line)]) + "\n",
+                    encoding="utf-8")
+
+
 def _short_run(root: Path) -> None:
     path = root / "step_kp10.csv"
     lines = path.read_text(encoding="utf-8").splitlines()
@@ -54,6 +65,8 @@ def _short_run(root: Path) -> None:
     (_short_run, "run step_kp10 (step_kp10.csv): only"),
     (_manifest(_wrong_gain), "run step_kp25: the manifest gives Kp = 46"),
     (_manifest(_slow_clock), "not evenly at the manifest's sample_time of 2 ms"),
+    (_manifest(_no_gain), "manifest.json: field runs.4.controller: needs Kp > 0 or Ki > 0"),
+    (_flat_calibration, "calibration: the voltage does not change with position (slope 0 V/in)"),
 ])
 def test_bad_dataset_gets_a_clear_error(linear_dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                        edit: Edit, expected: str) -> None:

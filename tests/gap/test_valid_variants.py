@@ -1,0 +1,113 @@
+"""Datasets a lab or another simulator could write, which the project's generator does not: each gets an answer (or,
+where the data are broken, one line naming the file and row), never a crash or a misleading message."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from grader.cli import main
+from grader.datasets import ControllerSpec, Run, RunSpec, load
+from grader.errors import DiagnosisError
+from grader.gap.candidates import SATURATION, make_candidates
+from grader.gap.runs import implied_feedback_gain, prepare_runs, sample_times
+from grader.stations import Station
+
+from .conftest import MakeDataset
+
+
+def _csv_rows(path: Path) -> tuple[str, list[list[float]]]:
+    lines = path.read_text(encoding="utf-8").splitlines()
+    return lines[0], [[float(x) for x in line.split(",")] for line in lines[1:] if line]
+
+
+def _write(path: Path, header: str, rows: list[list[float]], fmt: str = "{:.9g}") -> None:
+    path.write_text("\n".join([header, *(",".join(fmt.format(x) for x in row) for row in rows)]) + "\n",
+                    encoding="utf-8")
+
+
+def _copy(make: MakeDataset, tmp_path: Path) -> Path:
+    root = tmp_path / "ds"
+    shutil.copytree(make("variants_linear"), root)
+    return root
+
+
+def _diagnose(root: Path, tmp_path: Path) -> dict:
+    assert main(["diagnose", str(root), "--out", str(tmp_path / "out")]) == 0
+    return json.loads((tmp_path / "out" / "diagnosis.json").read_text(encoding="utf-8"))
+
+
+@pytest.mark.parametrize(("demand", "tried"), [(None, True), (0.0, False), (0.3, False), (0.5, False), (0.6, True)])
+def test_a_current_limit_is_a_candidate_only_where_one_in_range_could_clip_the_runs(station: Station,
+                                                                                    demand: float | None,
+                                                                                    tried: bool) -> None:
+    cands = {c.effect: c for c in make_candidates(station.params(), demand=demand)}
+    assert (SATURATION in cands) is tried
+    if tried:
+        assert all(np.all(np.isfinite(p.grid())) for p in cands[SATURATION].params)
+
+
+def test_small_signal_runs_get_a_diagnosis_that_says_saturation_was_not_tried(make: MakeDataset, tmp_path: Path,
+                                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """Runs asking the valve for under 0.5 mA (a 0.5 % scale model of the steps) once stopped on a NaN limit."""
+    root = _copy(make, tmp_path)
+    for name in ("step_kp10", "step_kp25", "step_kp46", "ramp_p", "ramp_pi", "instability"):
+        header, rows = _csv_rows(root / f"{name}.csv")
+        _write(root / f"{name}.csv", header, [[row[0], *(0.005 * x for x in row[1:])] for row in rows])
+    d = _diagnose(root, tmp_path)
+    assert any(n.startswith("valve saturation was not tried") for n in d["notes"])
+    assert "RuntimeWarning" not in capsys.readouterr().err
+
+
+def test_a_one_sided_flow_test_falls_back_to_the_runs_with_a_note(make: MakeDataset, tmp_path: Path) -> None:
+    root = _copy(make, tmp_path)
+    header, rows = _csv_rows(root / "flow.csv")
+    _write(root / "flow.csv", header, [row for row in rows if row[0] >= 0])
+    d = _diagnose(root, tmp_path)
+    assert any(n.startswith("flow test flow.csv not used (readings must span both sides") for n in d["notes"])
+    assert d["loop_gain"] is None  # no flow test's Kq to hold the runs' loop gain against
+
+
+def test_one_glitched_position_sample_does_not_blame_the_gains(make: MakeDataset) -> None:
+    """A logger spike the controller never saw: the gains implied by the recorded u stay the manifest's."""
+    ds = load(make("variants_linear"))
+    T = ds.given["sample_time"]
+    run = prepare_runs(ds, T)[1]
+    y = run.y.copy()
+    y[run.n // 3] += 5.0
+    glitched = type(run)(run.name, run.kind, run.controller, run.t, run.r, y, run.u, run.start, run.scale, run.noise)
+    assert implied_feedback_gain(glitched, T) == pytest.approx(implied_feedback_gain(run, T), rel=0.01)
+
+
+@settings(max_examples=60, deadline=None)
+@given(T=st.floats(0.0006, 0.005), t0=st.floats(-1.0, 5.0), decimals=st.sampled_from([3, 4, 5]),
+       n=st.integers(60, 3000))
+def test_time_stamps_rounded_for_printing_are_read_back_onto_the_sample_grid(T: float, t0: float, decimals: int,
+                                                                            n: int) -> None:
+    """A logger that prints %.3f (LabVIEW's default) rounds a 1.44 ms grid to whole milliseconds: each row still
+    names one sample, which the grid t0 + k·T recovers to the last digit's rounding."""
+    if 10.0**-decimals >= 0.9 * T:  # so coarse that two samples could print alike: not one row per sample
+        return
+    exact = t0 + T * np.arange(n)
+    printed = np.round(exact, decimals)
+    run = _run(printed)
+    assert np.max(np.abs(sample_times(run, T) - exact)) <= 0.5 * 10.0**-decimals + 1e-12
+
+
+def test_a_missing_row_is_named(make: MakeDataset) -> None:
+    ds = load(make("variants_linear"))
+    run = ds.runs[0]
+    t = np.delete(run.t, 299)  # the row after the gap, data row 299, is the file's line 301 (after the header)
+    with pytest.raises(DiagnosisError, match=r"\(row 301 is 2 ms after the one before\)"):
+        sample_times(_run(t), ds.given["sample_time"])
+
+
+def _run(t: np.ndarray) -> Run:
+    spec = RunSpec(name="step", file="step.csv", kind="step", controller=ControllerSpec(Kp=10))
+    return Run(spec, t, np.zeros(t.size), np.zeros(t.size))
