@@ -29,7 +29,7 @@ from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.lm import sumsq
 from grader.gap.objective import RunObjective, objective
-from grader.gap.runs import GapRun, check_gains, current_demand, prepare_runs
+from grader.gap.runs import GapRun, check_gains, current_demand, cut_note, prepare_runs, start_offset_note
 from grader.gap.schema import Candidate as SchemaCandidate
 from grader.gap.schema import Diagnosis, Verdict
 from grader.gap.search import SearchResult, refit, search, second_effect
@@ -329,8 +329,10 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
     return cands, y_aug, verdict
 
 
-def _notes(quant: quant_mod.Quantization | None, implied_kfb: float | None, demand: float) -> list[str]:
-    out = []
+def _notes(ds: Dataset, runs: Sequence[GapRun], quant: quant_mod.Quantization | None, noise: noise_mod.Noise,
+           implied_kfb: float | None, demand: float) -> list[str]:
+    out = [n for r, raw in zip(runs, ds.runs) for n in (cut_note(r, raw), start_offset_note(r, noise.floor))
+           if n is not None]
     if not saturation_can_act(demand):
         lo = EFFECTS[SATURATION].param("i_max").lo
         out.append(f"valve saturation was not tried: the runs ask the valve for at most {demand:.3g} mA, and a current "
@@ -382,7 +384,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
         readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit),
         candidates=cands, verdict=verdict, quantization=build.quantization_info(quant),
         static_evidence={} if fr is None else fr.values(), loop_gain=lg,
-        notes=[*base.notes, *_notes(quant, implied, demand)],
+        notes=[*base.notes, *_notes(ds, runs, quant, noise, implied, demand)],
     )
     return Analysis(diag, runs, segs, y_lin, y_aug)
 

@@ -31,6 +31,9 @@ from grader.model.rig_setup import DAC_LIMIT
 Array = NDArray[np.float64]
 #: Least recorded time after the command starts [s].
 MIN_DURATION = 0.2
+#: [s] after its command, the most of a run compared: every model evaluation simulates every sample (a 700 s record
+#: took a minute), while a lab run settles, tracks or oscillates for a few seconds.
+MAX_COMPARED = 30.0
 #: Fewest runs: the held-out gap of a run needs a model fitted to another.
 MIN_RUNS = 2
 #: Relative disagreement between the manifest gain and the gain ``u`` implies that is an error.
@@ -121,6 +124,9 @@ def _on_grid(run: Run, T: float) -> GapRun:
     t = sample_times(run, T)
     run = replace(run, t=t) if t is not run.t else run
     start = command_start(run.t, run.r)
+    n = int(np.searchsorted(run.t, start + MAX_COMPARED, side="right"))
+    if n < run.t.size:  # a long record: its first MAX_COMPARED seconds after the command (a note says so)
+        run = replace(run, t=run.t[:n], r=run.r[:n], y=run.y[:n], u=None if run.u is None else run.u[:n])
     if run.t[-1] - start < MIN_DURATION or run.t.size < 50:
         raise DiagnosisError(
             f"run {run.name} ({run.spec.file}): only {max(run.t[-1] - start, 0) * 1e3:.0f} ms recorded after the "
@@ -131,6 +137,31 @@ def _on_grid(run: Run, T: float) -> GapRun:
         raise DiagnosisError(f"run {run.name} ({run.spec.file}): the position never changes; nothing to compare")
     noise = np.zeros(run.t.size) if run.spec.kind == "instability" else run.y - quintic_smooth(run.y)
     return GapRun(run.name, run.spec.kind, run.controller, run.t, run.r, run.y, run.u, start, scale, noise)
+
+
+#: A run whose first readings lie further from its first command than this many times the noise floor and this
+#: share of the command's range does not start at rest at its command, as the model's simulation of it does.
+START_NOISE, START_SHARE = 10.0, 0.05
+START_ROWS = 5
+
+
+def start_offset_note(run: GapRun, floor: float) -> str | None:
+    """A note where ``run`` does not start at rest at its command (the mean of its first readings off the first
+    command by more than :data:`START_NOISE` × the noise ``floor`` [in] and :data:`START_SHARE` of the command's
+    range), else None: the logger started late, or the rig was still moving or held off by friction."""
+    off = float(np.mean(run.y[:START_ROWS]) - run.r[0])
+    if abs(off) <= max(START_NOISE * floor, START_SHARE * float(np.ptp(run.r))):
+        return None
+    return (f"run {run.name} starts {off:+.3g} in from its command, where the model starts it at rest: the logger "
+            "started late, or the rig was still moving or held off by friction; its first part is not comparable")
+
+
+def cut_note(run: GapRun, recorded: Run) -> str | None:
+    """A note where ``run`` keeps only the first :data:`MAX_COMPARED` seconds after its command of ``recorded``."""
+    if run.n == recorded.t.size:
+        return None
+    return (f"run {run.name}: its first {MAX_COMPARED:g} s after the command are compared (the record has "
+            f"{recorded.t[-1] - recorded.t[0]:.4g} s)")
 
 
 def control_law(c: Controller, e: Array, T: float) -> Array:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ from grader.cli import main
 from grader.datasets import ControllerSpec, Run, RunSpec, load
 from grader.errors import DiagnosisError
 from grader.gap.candidates import SATURATION, make_candidates
-from grader.gap.runs import implied_feedback_gain, prepare_runs, sample_times
+from grader.gap.runs import MAX_COMPARED, cut_note, implied_feedback_gain, prepare_runs, sample_times, start_offset_note
 from grader.stations import Station
 
 from .conftest import MakeDataset
@@ -111,3 +112,33 @@ def test_a_missing_row_is_named(make: MakeDataset) -> None:
 def _run(t: np.ndarray) -> Run:
     spec = RunSpec(name="step", file="step.csv", kind="step", controller=ControllerSpec(Kp=10))
     return Run(spec, t, np.zeros(t.size), np.zeros(t.size))
+
+
+def test_a_run_that_does_not_start_at_rest_at_its_command_gets_a_note(make: MakeDataset, tmp_path: Path) -> None:
+    """The logger started late: the step's command is on from the first row while the rig is still rising."""
+    root = _copy(make, tmp_path)
+    header, rows = _csv_rows(root / "step_kp25.csv")
+    cut = next(k for k, row in enumerate(rows) if row[1] != rows[0][1]) + 30  # 30 samples into the step
+    late = [[row[0] - (rows[cut][0] - rows[0][0]), *row[1:]] for row in rows[cut:]]
+    _write(root / "step_kp25.csv", header, late)
+    notes = _diagnose(root, tmp_path)["notes"]
+    assert [n for n in notes if "starts" in n] == [next(n for n in notes if n.startswith("run step_kp25 starts -0."))]
+
+
+def test_runs_recorded_at_rest_at_their_command_get_no_start_note(make: MakeDataset) -> None:
+    ds = load(make("variants_linear"))
+    runs = prepare_runs(ds, ds.given["sample_time"])
+    assert [start_offset_note(r, 0.0004) for r in runs] == [None] * len(runs)
+
+
+def test_a_long_record_is_compared_over_its_first_seconds_after_the_command(make: MakeDataset) -> None:
+    ds = load(make("variants_linear"))
+    T, raw = ds.given["sample_time"], ds.runs[0]
+    n = int(2 * MAX_COMPARED / T)
+    t = raw.t[0] + T * np.arange(n)
+    long = replace(raw, t=t, r=np.resize(raw.r, n), y=np.resize(raw.y, n), u=None)
+    kept = prepare_runs(replace(ds, runs=[long, ds.runs[1]]), T)[0]
+    assert kept.t[-1] - kept.start == pytest.approx(MAX_COMPARED, abs=T)
+    assert cut_note(kept, long) == f"run {raw.name}: its first {MAX_COMPARED:g} s after the command are compared " \
+                                   f"(the record has {t[-1] - t[0]:.4g} s)"
+    assert cut_note(prepare_runs(ds, T)[0], raw) is None
