@@ -12,7 +12,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from grader.model.params import mass_from_weight, piston_area
+from grader.errors import ModelError
+from grader.model.params import Controller, mass_from_weight, piston_area
 from grader.units import quantity_to_float
 
 RunKind = Literal["step", "ramp", "instability"]
@@ -87,9 +88,11 @@ class ControllerSpec(BaseModel):
     Kd: float = Field(default=0.0, ge=0, allow_inf_nan=False)
 
     @model_validator(mode="after")
-    def _holds_a_position(self) -> ControllerSpec:
-        if self.Kp <= 0 and self.Ki <= 0:
-            raise ValueError("needs Kp > 0 or Ki > 0 (a loop with neither does not hold a position)")
+    def _a_controller(self) -> ControllerSpec:
+        try:
+            Controller(self.Kp, self.Ki, self.Kd)  # the model's own rules (Kp > 0 or Ki > 0)
+        except ModelError as exc:
+            raise ValueError(str(exc)) from None
         return self
 
 

@@ -143,16 +143,30 @@ def fit_loop(runs: Sequence[GapRun], p0: RigParams, *, fit_kq: bool, bv_span: fl
     return model(least_squares(resid, np.zeros(span.size), method="lm", x_scale="jac").x)
 
 
+def _calibrated_kpot(ds: Dataset, notes: list[str]) -> float | None:
+    """Kpot [V/in] from the calibration file; with feedback in inches, which the loop does not need Kpot for, a
+    calibration the identification cannot use (a flat one) is set aside with a note (None)."""
+    assert ds.calibration is not None
+    try:
+        return PotCalibration().fit(ds.calibration["position"], ds.calibration["voltage"]).Kpot_.value
+    except IdentificationError as exc:
+        if ds.manifest.feedback == "volts":  # the loop gain carries Kpot
+            raise
+        reason = str(exc).removeprefix("calibration: ")
+        notes.append(f"calibration {ds.manifest.calibration} not used ({reason}): the loop, fed back in inches, "
+                     "does not need Kpot")
+        return None
+
+
 def from_runs(ds: Dataset, runs: Sequence[GapRun], implied_kfb: float | None) -> Baseline:
     """The loop identified from the runs (see module docstring)."""
     notes = []
     volts = ds.manifest.feedback == "volts"
-    if ds.calibration is not None:
-        kpot = PotCalibration().fit(ds.calibration["position"], ds.calibration["voltage"]).Kpot_.value
-    elif volts and implied_kfb is not None:
+    kpot = None if ds.calibration is None else _calibrated_kpot(ds, notes)
+    if kpot is None and volts and implied_kfb is not None:
         kpot = implied_kfb
         notes.append("no calibration file: Kpot taken from the recorded controller output u")
-    else:
+    elif kpot is None:
         kpot = 1.0
         if volts:
             notes.append("no calibration file and no u column: Kpot set to 1 V/in; only Kpot·Kq is identified")

@@ -20,7 +20,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import convolve1d
-from scipy.optimize import least_squares
 from scipy.signal import savgol_coeffs
 
 from grader.datasets import Dataset, Run
@@ -90,32 +89,36 @@ def command_start(t: Array, r: Array) -> float:
     return float(t[moved[0]]) if moved.size else float(t[0])
 
 
-def _printed_resolution(t: Array) -> Array:
-    """Per row, the largest power of ten from 1 s down to 1 ns of which its time stamp [s] is a multiple: the
-    resolution it was printed with (a logger writing ``%.3f`` rounds a 1.44 ms grid to whole milliseconds)."""
+def _printed_resolution(t: Array) -> float:
+    """The resolution [s] the time stamps were printed with: the median over rows of the largest power of ten from
+    1 s down to 1 ns of which a stamp is a multiple (a logger writing ``%.3f`` rounds a 1.44 ms grid to whole
+    milliseconds; a stamp that happens to end in zeros, as 1.000, shows a coarser one than the file's)."""
     res = np.zeros(t.size)
     for d in range(9, -1, -1):
         q = 10.0**-d
         res[np.abs(t / q - np.round(t / q)) < 1e-6] = q
-    return res
+    return float(np.median(res))
 
 
 def sample_times(run: Run, T: float) -> Array:
     """The run's time stamps [s] as controller samples every ``T``: as recorded where each row lies within 5 % of
-    T of its sample; else the grid t₀ + k·T, where each row lies on it within half its printed resolution (never
-    half a sample or more). Raises naming the first row off the grid otherwise."""
+    T of its sample; else the grid t₀ + k·T (t₀ centred in the offsets every row allows), where one grid takes
+    every row within half the stamps' printed resolution plus 5 % of T (never half a sample). Raises otherwise, naming
+    the first row no grid takes with the rows before it (a missing or repeated sample)."""
     t, dt = run.t, np.diff(run.t)
     if abs(float(np.median(dt)) - T) <= 0.01 * T and np.max(np.abs(dt - T)) <= 0.05 * T:
         return t
-    k, half = np.arange(t.size), 0.5 * _printed_resolution(t)
-    grid = float(np.median(t - k * T)) + k * T
-    if np.all(np.abs(t - grid) <= np.minimum(0.05 * T + half, 0.499 * T)):
-        return grid
-    gap = np.flatnonzero(np.abs(dt - T) > np.minimum(0.05 * T + half[1:] + half[:-1], 0.998 * T))  # rows apart
-    where = f" (row {gap[0] + 3} is {dt[gap[0]] * 1e3:.4g} ms after the one before)" if gap.size else ""
+    k = np.arange(t.size)
+    off, tol = t - k * T, min(0.05 * T + 0.5 * _printed_resolution(t), 0.499 * T)
+    lo, hi = np.maximum.accumulate(off - tol), np.minimum.accumulate(off + tol)  # the offsets rows 0..k allow
+    broken = np.flatnonzero(lo > hi)
+    if broken.size == 0:
+        return 0.5 * (lo[-1] + hi[-1]) + k * T
+    i = int(broken[0])
     raise DiagnosisError(
-        f"run {run.name} ({run.spec.file}): rows are {float(np.median(dt)) * 1e3:.4g} ms apart, not evenly at the "
-        f"manifest's sample_time of {T * 1e3:g} ms{where}; the diagnosis needs one row per controller sample"
+        f"run {run.name} ({run.spec.file}): rows are {(t[-1] - t[0]) / (t.size - 1) * 1e3:.4g} ms apart on average, "
+        f"not evenly at the manifest's sample_time of {T * 1e3:g} ms (row {i + 2} is {dt[i - 1] * 1e3:.4g} ms after "
+        "the one before); the diagnosis needs one row per controller sample"
     )
 
 
@@ -142,7 +145,7 @@ def _on_grid(run: Run, T: float) -> GapRun:
 #: A run whose first readings lie further from its first command than this many times the noise floor and this
 #: share of the command's range does not start at rest at its command, as the model's simulation of it does.
 START_NOISE, START_SHARE = 10.0, 0.05
-START_ROWS = 5
+START_ROWS = 5  # first readings averaged: one reading's noise would need a larger bar
 
 
 def start_offset_note(run: GapRun, floor: float) -> str | None:
@@ -191,14 +194,9 @@ def implied_feedback_gain(run: GapRun, T: float) -> float | None:
     if use.sum() < 20 or not np.any(np.abs(run.u[use]) > 1e-6):
         return None
     b, u = basis[use], run.u[use]
-    k0 = float(np.sum(b * u) / np.sum(b * b))
-    ratio = float(np.median(u / b))
-    scale = 1.4826 * float(np.median(np.abs(u - ratio * b)))  # the rows' typical misfit [V], a MAD
-    if scale <= 0:
-        return ratio
-    # robust to a few rows whose recorded y the controller never saw (a logger glitch): soft-L1 loss
-    fit = least_squares(lambda k: k[0] * b - u, [ratio if abs(ratio) > 0 else k0], loss="soft_l1", f_scale=scale)
-    return float(fit.x[0])
+    # the least-absolute-deviation slope through 0, the |b|-weighted median of u/b: a few rows whose recorded y the
+    # controller never saw (a logger's spike) do not set it, nor do rows where a coarsely printed u reads 0
+    return float(np.quantile(u / b, 0.5, weights=np.abs(b), method="inverted_cdf"))
 
 
 def check_gains(runs: list[GapRun], k_fb: float | None, T: float) -> float | None:

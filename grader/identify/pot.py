@@ -9,6 +9,10 @@ from scipy import stats
 from grader.errors import IdentificationError
 from grader.identify.estimate import Estimate
 
+#: A calibration whose voltage changes over the positions' span by no more than FLAT times the scatter of its
+#: readings about the line is flat (a pot not wired or powered), however many readings it has.
+FLAT = 2.0
+
 
 class PotCalibration:
     """Least-squares line ``voltage = offset + Kpot·position``.
@@ -22,12 +26,12 @@ class PotCalibration:
             raise IdentificationError("calibration: positions are all equal; move the mass a known distance")
         res = stats.linregress(x, v)
         dof = x.size - 2
-        if not abs(res.slope) > (stats.t.ppf(0.975, dof) * res.stderr if dof > 0 else 0.0):
-            se = f" ± {res.stderr:.2g}" if np.isfinite(res.stderr) and res.stderr > 0 else ""
-            raise IdentificationError(f"calibration: the voltage does not change with position (slope {res.slope:.3g}"
-                                      f"{se} V/in); is the pot wired and powered?")
+        resid_sd = float(np.std(v - (res.intercept + res.slope * x), ddof=2)) if dof > 0 else 0.0
+        if not abs(res.slope) * np.ptp(x) > FLAT * resid_sd:  # a flat line: the voltage's change is within its scatter
+            raise IdentificationError(f"calibration: the voltage does not change with position (slope {res.slope:.3g} "
+                                      f"V/in, scatter {resid_sd:.2g} V); is the pot wired and powered?")
         note = {"points": float(x.size), "span [in]": float(np.ptp(x))}
         self.Kpot_ = Estimate(abs(res.slope), "V/in", res.stderr, "least-squares slope of voltage on position", note, dof)
         self.offset_ = Estimate(res.intercept, "V", res.intercept_stderr, "intercept of the same fit", note, dof)
-        self.residual_sd_ = float(np.std(v - (res.intercept + res.slope * x), ddof=2)) if dof > 0 else 0.0
+        self.residual_sd_ = resid_sd
         return self

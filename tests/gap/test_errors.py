@@ -65,8 +65,8 @@ def _short_run(root: Path) -> None:
     (_short_run, "run step_kp10 (step_kp10.csv): only"),
     (_manifest(_wrong_gain), "run step_kp25: the manifest gives Kp = 46"),
     (_manifest(_slow_clock), "not evenly at the manifest's sample_time of 2 ms"),
-    (_manifest(_no_gain), "manifest.json: field runs.4.controller: needs Kp > 0 or Ki > 0"),
-    (_flat_calibration, "calibration: the voltage does not change with position (slope 0 V/in)"),
+    (_manifest(_no_gain), "manifest.json: field runs.4.controller: controller needs Kp > 0 or Ki > 0"),
+    (_flat_calibration, "calibration: the voltage does not change with position (slope 0 V/in, scatter 0 V)"),
 ])
 def test_bad_dataset_gets_a_clear_error(linear_dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                        edit: Edit, expected: str) -> None:

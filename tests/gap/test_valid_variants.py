@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from grader.cli import main
@@ -19,8 +19,9 @@ from grader.errors import DiagnosisError
 from grader.gap.candidates import SATURATION, make_candidates
 from grader.gap.runs import MAX_COMPARED, cut_note, implied_feedback_gain, prepare_runs, sample_times, start_offset_note
 from grader.stations import Station
+from grader.synth import make_dataset
 
-from .conftest import MakeDataset
+from .conftest import MakeDataset, short_plan
 
 
 def _csv_rows(path: Path) -> tuple[str, list[list[float]]]:
@@ -82,31 +83,49 @@ def test_one_glitched_position_sample_does_not_blame_the_gains(make: MakeDataset
     run = prepare_runs(ds, T)[1]
     y = run.y.copy()
     y[run.n // 3] += 5.0
-    glitched = type(run)(run.name, run.kind, run.controller, run.t, run.r, y, run.u, run.start, run.scale, run.noise)
-    assert implied_feedback_gain(glitched, T) == pytest.approx(implied_feedback_gain(run, T), rel=0.01)
+    assert implied_feedback_gain(replace(run, y=y), T) == pytest.approx(implied_feedback_gain(run, T), rel=0.01)
 
 
-@settings(max_examples=60, deadline=None)
-@given(T=st.floats(0.0006, 0.005), t0=st.floats(-1.0, 5.0), decimals=st.sampled_from([3, 4, 5]),
-       n=st.integers(60, 3000))
+@pytest.mark.parametrize("decimals", [1, 2])
+def test_a_coarsely_printed_controller_output_still_gives_the_gains(make: MakeDataset, decimals: int) -> None:
+    """u printed to 0.1 V reads 0 on most of a settled run; the gain comes from the rows that move it."""
+    ds = load(make("variants_linear"))
+    T = ds.given["sample_time"]
+    for run in prepare_runs(ds, T):
+        assert run.u is not None
+        coarse = replace(run, u=np.round(run.u, decimals))
+        assert implied_feedback_gain(coarse, T) == pytest.approx(implied_feedback_gain(run, T), rel=0.05)
+
+
+@settings(max_examples=80, deadline=None)
+@given(T=st.one_of(st.floats(0.0006, 0.005), st.sampled_from([0.002001, 0.0019999, 0.0010002, 0.003])),
+       t0=st.floats(-1.0, 5.0), decimals=st.sampled_from([3, 4, 5]), n=st.integers(60, 3000))
 def test_time_stamps_rounded_for_printing_are_read_back_onto_the_sample_grid(T: float, t0: float, decimals: int,
                                                                             n: int) -> None:
     """A logger that prints %.3f (LabVIEW's default) rounds a 1.44 ms grid to whole milliseconds: each row still
-    names one sample, which the grid t0 + k·T recovers to the last digit's rounding."""
-    if 10.0**-decimals >= 0.9 * T:  # so coarse that two samples could print alike: not one row per sample
-        return
+    names one sample, which the grid t0 + k·T recovers to the last digit's rounding, also where T is close to a
+    multiple of the resolution (the rounding errors then drift into two clusters)."""
+    assume(10.0**-decimals < 0.9 * T)  # coarser, two samples could print alike: not one row per sample
     exact = t0 + T * np.arange(n)
     printed = np.round(exact, decimals)
-    run = _run(printed)
-    assert np.max(np.abs(sample_times(run, T) - exact)) <= 0.5 * 10.0**-decimals + 1e-12
+    assert np.max(np.abs(sample_times(_run(printed), T) - exact)) <= 0.5 * 10.0**-decimals + 1e-12
 
 
-def test_a_missing_row_is_named(make: MakeDataset) -> None:
-    ds = load(make("variants_linear"))
-    run = ds.runs[0]
-    t = np.delete(run.t, 299)  # the row after the gap, data row 299, is the file's line 301 (after the header)
-    with pytest.raises(DiagnosisError, match=r"\(row 301 is 2 ms after the one before\)"):
-        sample_times(_run(t), ds.given["sample_time"])
+@pytest.mark.parametrize("decimals", [None, 3])
+def test_a_missing_row_is_named(decimals: int | None) -> None:
+    """The row after the gap, data row 499, is the file's line 501 (after the header), stamps exact or rounded."""
+    T = 0.00144
+    t = T * np.arange(2000)
+    t = np.delete(t if decimals is None else np.round(t, decimals), 499)
+    with pytest.raises(DiagnosisError, match=r"\(row 501 is [23](\.88)? ms after the one before\)"):
+        sample_times(_run(t), T)
+
+
+def test_a_manifest_with_a_byte_order_mark_loads(make: MakeDataset, tmp_path: Path) -> None:
+    root = _copy(make, tmp_path)
+    path = root / "manifest.json"
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    assert load(root).manifest == load(make("variants_linear")).manifest
 
 
 def _run(t: np.ndarray) -> Run:
@@ -142,3 +161,14 @@ def test_a_long_record_is_compared_over_its_first_seconds_after_the_command(make
     assert cut_note(kept, long) == f"run {raw.name}: its first {MAX_COMPARED:g} s after the command are compared " \
                                    f"(the record has {t[-1] - t[0]:.4g} s)"
     assert cut_note(prepare_runs(ds, T)[0], raw) is None
+
+
+def test_a_flat_calibration_is_set_aside_where_the_loop_is_fed_back_in_inches(station: Station, tmp_path: Path) -> None:
+    """Kpot only converts the pot's volts; a loop fed back in inches runs without it."""
+    inches = station.model_copy(update={"feedback": "inches"})
+    root = make_dataset(inches, tmp_path / "inches", seed=3, runs=short_plan(inches))
+    header, rows = _csv_rows(root / "calibration.csv")
+    _write(root / "calibration.csv", header, [[row[0], 5.0] for row in rows])
+    notes = _diagnose(root, tmp_path)["notes"]
+    assert any(n.startswith("calibration calibration.csv not used (the voltage does not change with position")
+               for n in notes)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from grader.datasets import load
+from grader.errors import IdentificationError
 from grader.identify import FlowGainFit, FrictionFit, OscillationFit, PotCalibration, coefficient_match, identify
 from grader.model.linear import critical_gain
 from grader.stations import Station
@@ -60,6 +61,21 @@ def test_pot_calibration_is_exact_on_a_line() -> None:
     fit = PotCalibration().fit(x, 2.0 + 0.85 * x)
     assert fit.Kpot_.value == pytest.approx(0.85)
     assert fit.offset_.value == pytest.approx(2.0)
+
+
+@pytest.mark.parametrize(("x", "v", "flat"), [
+    ([0.0, 0.5, 1.0], [4.20, 4.70, 5.05], False),  # three noisy readings (t = 12.7) of a real slope
+    ([0.0, 1.0], [4.2, 5.0], False),  # two readings: no scatter to compare with
+    ([0.0, 1.0, 2.0], [5.0, 5.0, 5.0], True),  # a pot not powered
+    ([0.0, 1.0, 2.0, 3.0], [5.0, 5.01, 4.99, 5.0], True),  # its noise only
+])
+def test_a_flat_calibration_is_refused_and_a_noisy_sloped_one_is_not(x: list[float], v: list[float],
+                                                                    flat: bool) -> None:
+    if flat:
+        with pytest.raises(IdentificationError, match="calibration: the voltage does not change with position"):
+            PotCalibration().fit(x, v)
+    else:
+        assert PotCalibration().fit(x, v).Kpot_.value > 0.5
 
 
 def test_flow_fit_excludes_saturation_and_subtracts_leakage() -> None:
