@@ -10,8 +10,9 @@ In order of preference:
    β/Vt, Kce and the loop gain Kq·k_fb are fitted to the runs (the linear part of each
    run, before the amplifier or DAC limit) starting from the instability run's
    oscillation as the students read it. Kpot comes from the calibration file, else from
-   the recorded controller output u; Kq from the flow test, else it is fitted (nominal
-   start: rated flow ÷ rated current, the paper's 0.5 gpm at 50 mA).
+   the recorded controller output u, else (volts feedback) from the runs' loop gain over the
+   flow test's Kq; Kq from the flow test, else it is fitted (nominal start: rated flow ÷
+   rated current, the paper's 0.5 gpm at 50 mA).
 """
 
 from __future__ import annotations
@@ -158,32 +159,53 @@ def _calibrated_kpot(ds: Dataset, notes: list[str]) -> float | None:
         return None
 
 
+def _flow_kq(ds: Dataset, notes: list[str]) -> float | None:
+    """Kq [in³/s/mA] from the flow test, or None (fitted to the runs instead, with a note): without one, or with
+    one the identification cannot use (read on one side of the null only, or flat)."""
+    start = "Kq fitted to the runs (nominal start 0.5 gpm / rated current)"
+    if ds.flow_test is None:
+        notes.append(f"no flow test: {start}")
+        return None
+    try:
+        return FlowGainFit(Kamp=ds.given["Kamp"]).fit(ds.flow_test["input"], ds.flow_test["flow"]).Kq_.value
+    except IdentificationError as exc:
+        reason = str(exc).removeprefix("flow test: ")
+        notes.append(f"flow test {ds.manifest.flow_test} not used ({reason}): {start}")
+        return None
+
+
+def _kpot_from_loop_gain(p: RigParams, kq: float) -> RigParams:
+    """``p`` with Kq [in³/s/mA] set to ``kq`` and Kpot [V/in] moved so that the loop gain Kpot·Kq stays."""
+    return p.with_(Kpot=p.Kpot * p.Kq / kq, Kq=kq)
+
+
 def from_runs(ds: Dataset, runs: Sequence[GapRun], implied_kfb: float | None) -> Baseline:
     """The loop identified from the runs (see module docstring)."""
-    notes = []
+    notes: list[str] = []
+    flow_notes: list[str] = []
+    kq = _flow_kq(ds, flow_notes)
     volts = ds.manifest.feedback == "volts"
     kpot = None if ds.calibration is None else _calibrated_kpot(ds, notes)
+    unknown_kpot = kpot is None and volts and implied_kfb is None
     if kpot is None and volts and implied_kfb is not None:
         kpot = implied_kfb
         notes.append("no calibration file: Kpot taken from the recorded controller output u")
-    elif kpot is None:
-        kpot = 1.0
-        if volts:
-            notes.append("no calibration file and no u column: Kpot set to 1 V/in; only Kpot·Kq is identified")
-    kq, start_kq = None, "Kq fitted to the runs (nominal start 0.5 gpm / rated current)"
-    if ds.flow_test is None:
-        notes.append(f"no flow test: {start_kq}")
-    else:
-        try:
-            kq = FlowGainFit(Kamp=ds.given["Kamp"]).fit(ds.flow_test["input"], ds.flow_test["flow"]).Kq_.value
-        except IdentificationError as exc:  # a one-sided or flat flow test: the runs still give the loop gain
-            reason = str(exc).removeprefix("flow test: ")
-            notes.append(f"flow test {ds.manifest.flow_test} not used ({reason}): {start_kq}")
-    fit_kq = kq is None
+    elif unknown_kpot and kq is not None:
+        notes.append("no calibration file and no u column: Kpot taken as the runs' loop gain over the flow test's Kq "
+                     "(so the loop gain cannot show viscous friction)")
+    elif unknown_kpot:
+        notes.append("no calibration file and no u column: Kpot set to 1 V/in; only Kpot·Kq is identified")
+    kpot = 1.0 if kpot is None else kpot
+    notes += flow_notes
     typical = _given_params(ds, RATED_FLOW / ds.given["i_max"] if kq is None else kq, kpot, TYPICAL["beta_over_Vt"],
                             TYPICAL["Kce"])
     osc, start = _oscillation(runs, typical)
-    p = fit_loop(runs, osc or typical, fit_kq=fit_kq, bv_span=LOG_SPAN if osc is None else OSC_SPAN)
+    span = LOG_SPAN if osc is None else OSC_SPAN
+    p = fit_loop(runs, osc or typical, fit_kq=kq is None or unknown_kpot, bv_span=span)
+    if unknown_kpot and kq is not None:
+        # the runs give the loop gain Kpot·Kq, the flow test Kq: Kpot is their ratio, which also puts the DAC's ±10 V
+        # limit (on Kp·Kpot·e) where the rig has it; the runs' linear parts end there, so the loop is refitted once
+        p = _kpot_from_loop_gain(fit_loop(runs, _kpot_from_loop_gain(p, kq), fit_kq=True, bv_span=span), kq)
     return Baseline(p, "runs", f"linear loop fitted to the runs, starting from the {start}", tuple(notes))
 
 

@@ -172,3 +172,23 @@ def test_a_flat_calibration_is_set_aside_where_the_loop_is_fed_back_in_inches(st
     notes = _diagnose(root, tmp_path)["notes"]
     assert any(n.startswith("calibration calibration.csv not used (the voltage does not change with position")
                for n in notes)
+
+
+def test_without_calibration_and_u_kpot_is_the_runs_loop_gain_over_the_flow_tests_kq(make: MakeDataset,
+                                                                                    station: Station,
+                                                                                    tmp_path: Path) -> None:
+    """Kpot set to 1 pinned the loop gain to the flow test's Kq and put the DAC's limit elsewhere (a 13 % fit, a
+    spool lag named on a rig without one); the runs' loop gain over the flow test's Kq gives Kpot."""
+    root = _copy(make, tmp_path)
+    manifest = json.loads((root / "manifest.json").read_text(encoding="utf-8"))
+    del manifest["calibration"]
+    (root / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
+    for run in manifest["runs"]:
+        header, rows = _csv_rows(root / run["file"])
+        keep = [j for j, cell in enumerate(header.split(",")) if not cell.startswith("u ")]
+        _write(root / run["file"], ",".join(header.split(",")[j] for j in keep), [[row[j] for j in keep] for row in rows])
+    d = _diagnose(root, tmp_path)
+    assert any(n.startswith("no calibration file and no u column: Kpot taken as the runs' loop gain") for n in d["notes"])
+    assert d["loop_gain"] is None  # Kpot came from that very comparison
+    assert d["baseline"]["params"]["Kpot"]["value"] == pytest.approx(station.params().Kpot, rel=0.02)
+    assert d["verdict"]["effect"] == "none"
