@@ -56,6 +56,8 @@ def _diagnose(args: argparse.Namespace) -> int:
         analysis = analyse(args.dataset, key=args.key, effects=_effects(args.effects), second=args.second)
         paths = write_outputs(analysis, out, helpers=helpers)
     print(summary(analysis.diagnosis))
+    for note in analysis.diagnosis.notes:  # what qualifies the numbers above (also in the report, under them)
+        print(f"\nNote: {note}")
     print(f"\nwrote {paths[0]}, {paths[1]} and {len(paths) - 2} plots in {time.perf_counter() - t0:.1f} s")
     return 0
 

@@ -109,13 +109,13 @@ def render_html(analysis: Analysis, images: dict[str, bytes]) -> str:
 <h1>Sim-to-real diagnosis of {html.escape(d.dataset)}</h1>
 <p class="meta">Station {html.escape(d.station)} · linear model: {html.escape(d.baseline.method)} ·
 noise σ ≈ {show(d.noise.sigma.value, "in")} · grader {html.escape(d.generated_by.get("version", ""))}</p>
-<div class="verdict">{paras}</div>{_GLOSSARY}
+<div class="verdict">{paras}</div>
+{f'<h2 id="notes">Notes on the data</h2><ul>{notes}</ul>' if notes else ""}{_GLOSSARY}
 <h2>Where the gap lies</h2>{_gap_table(d)}
 <h2>What students read off</h2>{_readoff_table(d)}
 <h2>Which effect</h2>{_img(images["candidates.png"], "candidates ranked by shrink")}{_candidate_table(d)}
 <h2>Runs: measured, linear and augmented model</h2>
 <p>Residuals are shaded by segment; the augmented model adds {html.escape(effect_name(_augmented(d)))}.</p>{runs}
-{f"<h2>Notes</h2><ul>{notes}</ul>" if notes else ""}
 </body></html>
 """
 
