@@ -55,8 +55,8 @@ def test_a_current_limit_is_a_candidate_only_where_one_in_range_could_clip_the_r
         assert all(np.all(np.isfinite(p.grid())) for p in cands[SATURATION].params)
 
 
-def test_small_signal_runs_get_a_diagnosis_that_says_saturation_was_not_tried(make: MakeDataset, tmp_path: Path,
-                                                                             capsys: pytest.CaptureFixture[str]) -> None:
+def test_small_signal_runs_get_a_diagnosis_that_says_saturation_was_not_tried(
+        make: MakeDataset, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Runs asking the valve for under 0.5 mA (a 0.5 % scale model of the steps) once stopped on a NaN limit."""
     root = _copy(make, tmp_path)
     for name in ("step_kp10", "step_kp25", "step_kp46", "ramp_p", "ramp_pi", "instability"):
@@ -186,9 +186,11 @@ def test_without_calibration_and_u_kpot_is_the_runs_loop_gain_over_the_flow_test
     for run in manifest["runs"]:
         header, rows = _csv_rows(root / run["file"])
         keep = [j for j, cell in enumerate(header.split(",")) if not cell.startswith("u ")]
-        _write(root / run["file"], ",".join(header.split(",")[j] for j in keep), [[row[j] for j in keep] for row in rows])
+        cells = header.split(",")
+        _write(root / run["file"], ",".join(cells[j] for j in keep), [[row[j] for j in keep] for row in rows])
     d = _diagnose(root, tmp_path)
-    assert any(n.startswith("no calibration file and no u column: Kpot taken as the runs' loop gain") for n in d["notes"])
+    said = "no calibration file and no u column: Kpot taken as the runs' loop gain"
+    assert any(n.startswith(said) for n in d["notes"])
     assert d["loop_gain"] is None  # Kpot came from that very comparison
     assert d["baseline"]["params"]["Kpot"]["value"] == pytest.approx(station.params().Kpot, rel=0.02)
     assert d["verdict"]["effect"] == "none"
