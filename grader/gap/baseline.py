@@ -65,6 +65,9 @@ class Baseline:
     source: str
     method: str
     notes: tuple[str, ...] = ()
+    #: Kpot is the runs' loop gain over the flow test's Kq (volts feedback, no calibration, no usable u): the
+    #: flow test then cannot be held against the runs' loop gain (:func:`grader.gap.evidence.loop_gain`).
+    kpot_from_flow_test: bool = False
 
 
 def _given_params(ds: Dataset, Kq: float, Kpot: float, bv: float, kce: float) -> RigParams:
@@ -190,7 +193,7 @@ def from_runs(ds: Dataset, runs: Sequence[GapRun], implied_kfb: float | None) ->
     if kpot is None and volts and implied_kfb is not None:
         kpot = implied_kfb
         notes.append("no calibration file: Kpot taken from the recorded controller output u")
-    elif unknown_kpot and kq is not None:
+    elif unknown_kpot and kq is not None:  # Kpot from the runs' loop gain over Kq, below
         notes.append("no calibration file and no u column: Kpot taken as the runs' loop gain over the flow test's Kq "
                      "(so the loop gain cannot show viscous friction)")
     elif unknown_kpot:
@@ -202,11 +205,13 @@ def from_runs(ds: Dataset, runs: Sequence[GapRun], implied_kfb: float | None) ->
     osc, start = _oscillation(runs, typical)
     span = LOG_SPAN if osc is None else OSC_SPAN
     p = fit_loop(runs, osc or typical, fit_kq=kq is None or unknown_kpot, bv_span=span)
-    if unknown_kpot and kq is not None:
+    from_flow = unknown_kpot and kq is not None
+    if from_flow:
         # the runs give the loop gain Kpot·Kq, the flow test Kq: Kpot is their ratio, which also puts the DAC's ±10 V
         # limit (on Kp·Kpot·e) where the rig has it; the runs' linear parts end there, so the loop is refitted once
         p = _kpot_from_loop_gain(fit_loop(runs, _kpot_from_loop_gain(p, kq), fit_kq=True, bv_span=span), kq)
-    return Baseline(p, "runs", f"linear loop fitted to the runs, starting from the {start}", tuple(notes))
+    return Baseline(p, "runs", f"linear loop fitted to the runs, starting from the {start}", tuple(notes),
+                    kpot_from_flow_test=from_flow)
 
 
 def choose(ds: Dataset, runs: Sequence[GapRun], *, key: str | Path | None, implied_kfb: float | None) -> Baseline:

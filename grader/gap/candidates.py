@@ -26,6 +26,7 @@ from grader.model.params import RigParams
 Array = NDArray[np.float64]
 NONE = "none"
 SATURATION = "valve_saturation"
+LEAST_LIMIT = EFFECTS[SATURATION].param("i_max").lo  # [mA], the least current limit of the realistic range
 #: Canonical effects that describe the sensor, not the physics: part of the noise floor.
 NOISE_EFFECTS = ("sensor_noise", "sensor_quantization")
 #: Not fitted to the runs unless asked for: with the loop gain free, viscous friction is exactly a larger Kce
@@ -191,8 +192,8 @@ def make_candidates(base: RigParams, names: Sequence[str] | None = None, *, dema
 
 def saturation_can_act(demand: float | None) -> bool:
     """Whether a current limit within its realistic range can cut the runs' largest current ``demand`` [mA]
-    (None: not known, assumed so): a limit at its least value or above clips nothing smaller."""
-    return demand is None or demand > EFFECTS[SATURATION].param("i_max").lo
+    (None: not known, assumed so): a limit at its least value, :data:`LEAST_LIMIT`, or above clips nothing smaller."""
+    return demand is None or demand > LEAST_LIMIT
 
 
 def physical_effects() -> tuple[str, ...]:

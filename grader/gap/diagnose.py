@@ -24,7 +24,7 @@ from grader.gap import noise as noise_mod
 from grader.gap import quantization as quant_mod
 from grader.gap import spool
 from grader.gap.backend import Backend, Point, worker
-from grader.gap.candidates import NONE, NOT_FROM_RUNS, SATURATION, Candidate, make_candidates, saturation_can_act
+from grader.gap.candidates import LEAST_LIMIT, NONE, NOT_FROM_RUNS, Candidate, make_candidates, saturation_can_act
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.lm import sumsq
@@ -334,9 +334,8 @@ def _notes(ds: Dataset, runs: Sequence[GapRun], quant: quant_mod.Quantization | 
     out = [n for r, raw in zip(runs, ds.runs) for n in (cut_note(r, raw), start_offset_note(r, noise.floor))
            if n is not None]
     if not saturation_can_act(demand):
-        lo = EFFECTS[SATURATION].param("i_max").lo
         out.append(f"valve saturation was not tried: the runs ask the valve for at most {demand:.3g} mA, and a current "
-                   f"limit of {lo:g} mA or more clips nothing smaller")
+                   f"limit of {LEAST_LIMIT:g} mA or more clips nothing smaller")
     if quant is not None and not quant.matters:
         out.append(quant.text())
     if implied_kfb is None:
@@ -372,7 +371,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
                                           noise.sigma, fr,
                                           second=second, parallel=parallel)
     lg = None
-    if fr is None:  # without a friction test, the flow test against the runs' loop gain
+    if fr is None and not base.kpot_from_flow_test:  # the flow test against the runs' loop gain (not against itself)
         lg = evidence.loop_gain(ds, next(c for c in cands if c.effect == verdict.effect), base.params)
     verdict = evidence.viscous_from_loop_gain(evidence.viscous(verdict, fr), lg)
     verdict = evidence.quantized(evidence.viscous_unexcluded(verdict, fr, lg), quant)

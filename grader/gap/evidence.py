@@ -208,10 +208,8 @@ def _kpot_se(ds: Dataset) -> float:
 def loop_gain(ds: Dataset, cand: Candidate, base: RigParams) -> LoopGainInfo | None:
     """The flow test's Kq against the Kq of candidate ``cand`` fitted to the runs (its linear model around
     ``base``), and the viscous friction that reconciles them (module docstring); None without a usable flow test,
-    where Kpot came from this comparison (volts feedback without a calibration or a recorded u), or where the
-    flow test's or the calibration's interval is not finite (no deficit could be told from noise)."""
-    if ds.flow_test is None or (ds.manifest.feedback == "volts" and ds.calibration is None
-                                and all(r.u is None for r in ds.runs)):  # Kpot came from this very comparison
+    or where the flow test's or the calibration's interval is not finite (no deficit could be told from noise)."""
+    if ds.flow_test is None:
         return None
     from grader.identify.flow import FlowGainFit
 

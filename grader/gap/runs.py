@@ -9,8 +9,9 @@ noise the rig's controller saw: the reading minus its local quintic smoothing
 controller reading it too, so that effects the noise dithers (backlash, deadband,
 stiction) act as they did on the rig. It is zero for the instability run, whose
 large oscillation no smoother separates from the noise to the needed precision. Checks raise :class:`DiagnosisError`
-naming the run: no runs, a run too short, rows that are not one per controller sample,
-and a manifest gain the recorded controller output ``u`` contradicts.
+naming the run: no runs, a run too short, rows that are not one per controller sample (time stamps rounded
+for printing are read back onto the grid: :func:`sample_times`), and a manifest gain the recorded controller
+output ``u`` contradicts. A run is compared over at most :data:`MAX_COMPARED` seconds after its command.
 """
 
 from __future__ import annotations
