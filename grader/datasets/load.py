@@ -59,13 +59,8 @@ class Dataset:
 
 
 
-def read_manifest(root: Path) -> tuple[Manifest, Path]:
-    """Find and validate the manifest in ``root``."""
-    if not root.is_dir():
-        raise DatasetError(f"{root}: not a dataset folder")
-    path = next((root / n for n in MANIFEST_NAMES if (root / n).is_file()), None)
-    if path is None:
-        raise DatasetError(f"{root}: no manifest.json or manifest.yaml")
+def _read_raw(path: Path) -> dict:
+    """The manifest file's content, parsed but not validated."""
     if path.is_symlink():
         raise DatasetError(f"{path.name}: is a symbolic link; the manifest must be a regular file")
     if path.stat().st_size > MAX_MANIFEST_BYTES:
@@ -78,6 +73,22 @@ def read_manifest(root: Path) -> tuple[Manifest, Path]:
         raise DatasetError(f"{path.name}: not valid {path.suffix[1:].upper()}: {first}") from None
     if not isinstance(raw, dict):
         raise DatasetError(f"{path.name}: must hold a mapping (object) at the top level")
+    return raw
+
+
+def read_manifest(root: Path) -> tuple[Manifest, Path]:
+    """Find and validate the manifest in ``root``. Two manifests (say a JSON one and the YAML it was written
+    from) must say the same; the first of :data:`MANIFEST_NAMES` is the one read."""
+    if not root.is_dir():
+        raise DatasetError(f"{root}: not a dataset folder")
+    paths = [root / n for n in MANIFEST_NAMES if (root / n).is_file()]
+    if not paths:
+        raise DatasetError(f"{root}: no manifest.json or manifest.yaml")
+    path, raw = paths[0], _read_raw(paths[0])
+    for other in paths[1:]:
+        if _read_raw(other) != raw:
+            raise DatasetError(f"{path.name} and {other.name} are both in the folder and say different things; "
+                               "keep the one that describes the data")
     try:
         return Manifest.model_validate(raw), path
     except ValidationError as exc:

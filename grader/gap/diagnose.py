@@ -351,7 +351,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     use a second core (a worker thread)."""
     ds = load(dataset_dir)
     T = ds.given["sample_time"]
-    runs = prepare_runs(ds, T)
+    ds, runs, set_aside = prepare_runs(ds, T)
     implied = check_gains(runs, _reference_kfb(ds), T)
     base = baseline_mod.choose(ds, runs, key=key, implied_kfb=implied)
     noise = noise_mod.estimate(runs)
@@ -383,7 +383,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
         readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit),
         candidates=cands, verdict=verdict, quantization=build.quantization_info(quant),
         static_evidence={} if fr is None else fr.values(), loop_gain=lg,
-        notes=[*base.notes, *_notes(ds, runs, quant, noise, implied, demand)],
+        notes=[*set_aside, *base.notes, *_notes(ds, runs, quant, noise, implied, demand)],
     )
     return Analysis(diag, runs, segs, y_lin, y_aug)
 

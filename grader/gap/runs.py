@@ -9,9 +9,11 @@ noise the rig's controller saw: the reading minus its local quintic smoothing
 controller reading it too, so that effects the noise dithers (backlash, deadband,
 stiction) act as they did on the rig. It is zero for the instability run, whose
 large oscillation no smoother separates from the noise to the needed precision. Checks raise :class:`DiagnosisError`
-naming the run: no runs, a run too short, rows that are not one per controller sample (time stamps rounded
+naming the run: fewer than two runs to compare, rows that are not one per controller sample (time stamps rounded
 for printing are read back onto the grid: :func:`sample_times`), and a manifest gain the recorded controller
-output ``u`` contradicts. A run is compared over at most :data:`MAX_COMPARED` seconds after its command.
+output ``u`` contradicts. A run too short, or whose position never changes, is set aside with a note; a reading
+that jumps out and back within one sample is mended with one (:mod:`grader.gap.glitches`). A run is
+compared over at most :data:`MAX_COMPARED` seconds after its command.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from scipy.signal import savgol_coeffs
 
 from grader.datasets import Dataset, Run
 from grader.errors import DiagnosisError
+from grader.gap.glitches import mend
 from grader.model.params import Controller
 from grader.model.rig_setup import DAC_LIMIT
 
@@ -132,13 +135,12 @@ def _on_grid(run: Run, T: float) -> GapRun:
     if n < run.t.size:  # a long record: its first MAX_COMPARED seconds after the command (a note says so)
         run = replace(run, t=run.t[:n], r=run.r[:n], y=run.y[:n], u=None if run.u is None else run.u[:n])
     if run.t[-1] - start < MIN_DURATION or run.t.size < 50:
-        raise DiagnosisError(
-            f"run {run.name} ({run.spec.file}): only {max(run.t[-1] - start, 0) * 1e3:.0f} ms recorded after the "
-            f"command starts ({run.t.size} rows); the diagnosis needs at least {MIN_DURATION * 1e3:.0f} ms and 50 rows"
-        )
+        raise _Unusable(f"run {run.name} ({run.spec.file}): only {max(run.t[-1] - start, 0) * 1e3:.0f} ms recorded "
+                        f"after the command starts ({run.t.size} rows); the diagnosis needs at least "
+                        f"{MIN_DURATION * 1e3:.0f} ms and 50 rows")
     scale = float(np.std(run.y))
     if scale <= 0:
-        raise DiagnosisError(f"run {run.name} ({run.spec.file}): the position never changes; nothing to compare")
+        raise _Unusable(f"run {run.name} ({run.spec.file}): the position never changes; nothing to compare")
     noise = np.zeros(run.t.size) if run.spec.kind == "instability" else run.y - quintic_smooth(run.y)
     return GapRun(run.name, run.spec.kind, run.controller, run.t, run.r, run.y, run.u, start, scale, noise)
 
@@ -220,13 +222,33 @@ def check_gains(runs: list[GapRun], k_fb: float | None, T: float) -> float | Non
     return ref
 
 
-def prepare_runs(dataset: Dataset, T: float) -> list[GapRun]:
-    """All runs of ``dataset`` checked and on the sample grid."""
+class _Unusable(DiagnosisError):
+    """A run with nothing to compare (too short, or a position that never changes): set aside with a note."""
+
+
+def prepare_runs(dataset: Dataset, T: float) -> tuple[Dataset, list[GapRun], list[str]]:
+    """The runs of ``dataset`` checked and on the sample grid: the dataset without the runs that hold nothing to
+    compare, the runs kept, and a note naming each run set aside and why. Raises when fewer than
+    :data:`MIN_RUNS` are left, or where a run's rows are not one per controller sample."""
     if len(dataset.runs) < MIN_RUNS:
         listed = "no runs" if not dataset.runs else f"one run ({dataset.runs[0].name})"
         raise DiagnosisError(f"{dataset.root.name}: the manifest lists {listed}; the diagnosis needs at least "
                              f"{MIN_RUNS} closed-loop runs (it predicts each run from the model fitted to the others)")
-    return [_on_grid(run, T) for run in dataset.runs]
+    kept: list[tuple[Run, GapRun]] = []
+    reasons: list[str] = []
+    mended: list[str] = []
+    for raw in dataset.runs:
+        run, notes = mend(raw)
+        try:
+            kept.append((run, _on_grid(run, T)))
+            mended += notes
+        except _Unusable as exc:
+            reasons.append(str(exc))
+    if len(kept) < MIN_RUNS:
+        raise DiagnosisError(f"{dataset.root.name}: {len(kept)} of the manifest's {len(dataset.runs)} runs can be "
+                             f"compared, and the diagnosis needs at least {MIN_RUNS}: {'; '.join(reasons)}")
+    notes = [f"{reason}; the run is set aside" for reason in reasons] + mended
+    return replace(dataset, runs=tuple(run for run, _ in kept)), [run for _, run in kept], notes
 
 
 def truncated(run: GapRun, duration: float) -> GapRun:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -64,6 +65,12 @@ def _replace_header(ds: Path, file: str, header: str) -> None:
     (ds / file).write_text("\n".join([header, *lines[1:]]) + "\n")
 
 
+def _yaml_copy(ds: Path, **changes: object) -> None:
+    """manifest.yaml beside manifest.json: the JSON's content with ``changes``."""
+    m = json.loads((ds / "manifest.json").read_text())
+    (ds / "manifest.yaml").write_text(yaml.safe_dump({**m, **changes}))
+
+
 BAD_CASES = [
     ("wrong unit dimension", lambda d: _replace_header(d, "step_kp10.csv", "t [s],r [in],y [psi],u [V]"),
      ["step_kp10.csv", "'y'"]),
@@ -80,6 +87,8 @@ BAD_CASES = [
                                                            "controller": {"Kp": 1}}]), ["runs.0.kind"]),
     ("path traversal", lambda d: _edit_manifest(d, calibration="../x.csv"), ["calibration", "plain file name"]),
     ("missing file", lambda d: (d / "ramp_pi.csv").unlink(), ["ramp_pi.csv", "not found"]),
+    ("two manifests that differ", lambda d: _yaml_copy(d, station="other"),
+     ["manifest.json and manifest.yaml", "say different things"]),
 ]
 
 
@@ -156,3 +165,10 @@ def test_long_bad_cells_are_clipped_in_messages(ds: Path) -> None:
     with pytest.raises(DatasetError) as exc:
         load(ds)
     assert len(str(exc.value)) < 200
+
+
+def test_a_yaml_manifest_that_says_what_the_json_one_says_is_no_conflict(ds: Path) -> None:
+    before = load(ds)
+    _yaml_copy(ds)
+    after = load(ds)
+    assert after.manifest == before.manifest and after.inputs_sha256 == before.inputs_sha256

@@ -19,7 +19,7 @@ from .conftest import MakeDataset
 
 def _requests(make: MakeDataset) -> tuple[list, list[tuple[Point, int]]]:
     ds = load(make("quiet"))
-    runs = prepare_runs(ds, ds.given["sample_time"])
+    runs = prepare_runs(ds, ds.given["sample_time"])[1]
     base = baseline.choose(ds, runs, key=None, implied_kfb=None).params
     points = [Point(base.with_(Kce=base.Kce * f), EffectSet.from_quantities({"coulomb_friction": {"Fc": fc}}))
               for f, fc in ((1.0, "0.5 lbf"), (1.3, "2 lbf"), (0.8, "0.1 lbf"))]

@@ -46,7 +46,7 @@ def test_the_diagnosis_starts_from_the_baseline_as_written(make: MakeDataset) ->
     from grader.precision import round_sig
 
     ds = load(make("coulomb_friction", {"coulomb_friction": {"Fc": 2.0}}))
-    base = choose(ds, prepare_runs(ds, ds.given["sample_time"]), key=None, implied_kfb=None)
+    base = choose(ds, prepare_runs(ds, ds.given["sample_time"])[1], key=None, implied_kfb=None)
     assert base.source == "identified"
     values = [float(getattr(base.params, name)) for name in _IDENTIFIED]
     assert values == [round_sig(v) for v in values] and any(v != round(v, 3) for v in values)

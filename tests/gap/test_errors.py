@@ -53,16 +53,19 @@ def _flat_calibration(root: Path) -> None:
                     encoding="utf-8")
 
 
-def _short_run(root: Path) -> None:
-    path = root / "step_kp10.csv"
-    lines = path.read_text(encoding="utf-8").splitlines()
-    path.write_text("\n".join(lines[:60]) + "\n", encoding="utf-8")
+def _short_runs(root: Path) -> None:
+    """Every run but step_kp25 stopped right after its command: each is set aside, and one run is too few."""
+    for name in ("step_kp10", "step_kp46", "instability", "ramp_p", "ramp_pi"):
+        path = root / f"{name}.csv"
+        lines = path.read_text(encoding="utf-8").splitlines()
+        path.write_text("\n".join(lines[:60]) + "\n", encoding="utf-8")
 
 
 @pytest.mark.parametrize(("edit", "expected"), [
     (_manifest(_no_runs), "lists no runs"),
     (_manifest(_one_run), "lists one run (step_kp25); the diagnosis needs at least 2 closed-loop runs"),
-    (_short_run, "run step_kp10 (step_kp10.csv): only"),
+    (_short_runs, "ds: 1 of the manifest's 6 runs can be compared, and the diagnosis needs at least 2: run step_kp10 "
+                  "(step_kp10.csv): only"),
     (_manifest(_wrong_gain), "run step_kp25: the manifest gives Kp = 46"),
     (_manifest(_slow_clock), "not evenly at the manifest's sample_time of 2 ms"),
     (_manifest(_no_gain), "manifest.json: field runs.4.controller: controller needs Kp > 0 or Ki > 0"),

@@ -18,7 +18,7 @@ from .conftest import MakeDataset
 
 def _fitter(make: MakeDataset) -> tuple[BatchFitter, list]:
     ds = load(make("coulomb_friction", {"coulomb_friction": {"Fc": 2.0}}))
-    runs = [truncated(r, 0.3) for r in prepare_runs(ds, ds.given["sample_time"])]
+    runs = [truncated(r, 0.3) for r in prepare_runs(ds, ds.given["sample_time"])[1]]
     base = baseline.choose(ds, runs, key=None, implied_kfb=None)
     cands = make_candidates(base.params, ["coulomb_friction", "sampling_delay"])
     fitter = BatchFitter([objective(r) for r in runs], base.params, Backend(runs))
@@ -44,7 +44,7 @@ def test_an_addition_at_its_nesting_theta_simulates_as_the_first_effect_alone(ma
     the same positions, bit for bit. (A spool lag's neutral, its least fitted time constant of 0.1 ms, is not: at
     the margin of stability the instability run feels even that phase lag.)"""
     ds = load(make("coulomb_friction", {"coulomb_friction": {"Fc": 2.0}}))
-    runs = [truncated(r, 0.3) for r in prepare_runs(ds, ds.given["sample_time"])]
+    runs = [truncated(r, 0.3) for r in prepare_runs(ds, ds.given["sample_time"])[1]]
     base = baseline.choose(ds, runs, key=None, implied_kfb=None).params
     cands = {c.effect: c for c in make_candidates(base)}
     first = cands["coulomb_friction"]
@@ -61,7 +61,7 @@ def test_no_addition_ends_a_second_search_worse_than_the_first_effect_alone(make
     """Each addition nests the first effect (at its neutral magnitude), so none ends the pair search fitting worse than
     the first alone refitted there: one that does is started once more from where it nests the first."""
     ds = load(make("coulomb_friction", {"coulomb_friction": {"Fc": 2.0}}))
-    runs = [truncated(r, 0.4) for r in prepare_runs(ds, ds.given["sample_time"])]
+    runs = [truncated(r, 0.4) for r in prepare_runs(ds, ds.given["sample_time"])[1]]
     base = baseline.choose(ds, runs, key=None, implied_kfb=None).params
     cands = {c.effect: c for c in make_candidates(base, ["coulomb_friction", "sampling_delay", "valve_saturation"])}
     objs = [objective(r) for r in runs]

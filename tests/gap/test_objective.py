@@ -97,7 +97,7 @@ def test_a_backlash_makes_the_model_wander_with_the_noise_a_linear_model_does_no
     from grader.gap.runs import prepare_runs
 
     ds = load(make("quiet"))
-    runs = prepare_runs(ds, ds.given["sample_time"])
+    runs = prepare_runs(ds, ds.given["sample_time"])[1]
     objs = [objective(r, 0.0004) for r in runs]
     p = load_station("default").params()
     linear = spread(objs, Point(p), 0.0004)

@@ -80,7 +80,7 @@ def test_one_glitched_position_sample_does_not_blame_the_gains(make: MakeDataset
     """A logger spike the controller never saw: the gains implied by the recorded u stay the manifest's."""
     ds = load(make("variants_linear"))
     T = ds.given["sample_time"]
-    run = prepare_runs(ds, T)[1]
+    run = prepare_runs(ds, T)[1][1]
     y = run.y.copy()
     y[run.n // 3] += 5.0
     assert implied_feedback_gain(replace(run, y=y), T) == pytest.approx(implied_feedback_gain(run, T), rel=0.01)
@@ -91,7 +91,7 @@ def test_a_coarsely_printed_controller_output_still_gives_the_gains(make: MakeDa
     """u printed to 0.1 V reads 0 on most of a settled run; the gain comes from the rows that move it."""
     ds = load(make("variants_linear"))
     T = ds.given["sample_time"]
-    for run in prepare_runs(ds, T):
+    for run in prepare_runs(ds, T)[1]:
         assert run.u is not None
         coarse = replace(run, u=np.round(run.u, decimals))
         assert implied_feedback_gain(coarse, T) == pytest.approx(implied_feedback_gain(run, T), rel=0.05)
@@ -146,7 +146,7 @@ def test_a_run_that_does_not_start_at_rest_at_its_command_gets_a_note(make: Make
 
 def test_runs_recorded_at_rest_at_their_command_get_no_start_note(make: MakeDataset) -> None:
     ds = load(make("variants_linear"))
-    runs = prepare_runs(ds, ds.given["sample_time"])
+    runs = prepare_runs(ds, ds.given["sample_time"])[1]
     assert [start_offset_note(r, 0.0004) for r in runs] == [None] * len(runs)
 
 
@@ -156,11 +156,11 @@ def test_a_long_record_is_compared_over_its_first_seconds_after_the_command(make
     n = int(2 * MAX_COMPARED / T)
     t = raw.t[0] + T * np.arange(n)
     long = replace(raw, t=t, r=np.resize(raw.r, n), y=np.resize(raw.y, n), u=None)
-    kept = prepare_runs(replace(ds, runs=[long, ds.runs[1]]), T)[0]
+    kept = prepare_runs(replace(ds, runs=[long, ds.runs[1]]), T)[1][0]
     assert kept.t[-1] - kept.start == pytest.approx(MAX_COMPARED, abs=T)
     assert cut_note(kept, long) == f"run {raw.name}: its first {MAX_COMPARED:g} s after the command are compared " \
                                    f"(the record has {t[-1] - t[0]:.4g} s)"
-    assert cut_note(prepare_runs(ds, T)[0], raw) is None
+    assert cut_note(prepare_runs(ds, T)[1][0], raw) is None
 
 
 def test_a_flat_calibration_is_set_aside_where_the_loop_is_fed_back_in_inches(station: Station, tmp_path: Path) -> None:
@@ -194,3 +194,55 @@ def test_without_calibration_and_u_kpot_is_the_runs_loop_gain_over_the_flow_test
     assert d["loop_gain"] is None  # Kpot came from that very comparison
     assert d["baseline"]["params"]["Kpot"]["value"] == pytest.approx(station.params().Kpot, rel=0.02)
     assert d["verdict"]["effect"] == "none"
+
+
+def _keep_rows(root: Path, name: str, n: int) -> None:
+    header, rows = _csv_rows(root / f"{name}.csv")
+    _write(root / f"{name}.csv", header, rows[:n])
+
+
+def test_a_run_with_nothing_to_compare_is_set_aside_and_the_others_diagnosed(make: MakeDataset, tmp_path: Path) -> None:
+    """A run stopped right after its command, and one whose position never changes (a sensor unplugged), once
+    stopped the whole diagnosis; each is now named in a note and the other runs are diagnosed."""
+    root = _copy(make, tmp_path)
+    _keep_rows(root, "step_kp25", 60)
+    header, rows = _csv_rows(root / "ramp_p.csv")
+    y = header.split(",").index(next(c for c in header.split(",") if c.startswith("y ")))
+    _write(root / "ramp_p.csv", header, [[*row[:y], 0.25, *row[y + 1:]] for row in rows])
+    d = _diagnose(root, tmp_path)
+    aside = [n for n in d["notes"] if n.endswith("the run is set aside")]
+    assert len(aside) == 2
+    assert aside[0].startswith("run step_kp25 (step_kp25.csv): only ")
+    assert aside[1] == "run ramp_p (ramp_p.csv): the position never changes; nothing to compare; the run is set aside"
+    assert {g["run"] for g in d["gap"]["by_run"]} == {"step_kp10", "step_kp46", "instability", "ramp_pi"}
+    assert d["verdict"]["effect"] == "none"
+
+
+def test_fewer_than_two_runs_to_compare_is_one_line_naming_each_run_set_aside(make: MakeDataset,
+                                                                             tmp_path: Path) -> None:
+    root = _copy(make, tmp_path)
+    for name in ("step_kp10", "step_kp25", "step_kp46", "instability", "ramp_p"):
+        _keep_rows(root, name, 40)
+    said = (r"^ds: 1 of the manifest's 6 runs can be compared, and the diagnosis needs at least 2: "
+            r"run step_kp10 \(step_kp10.csv\): only .*; run ramp_p ")
+    with pytest.raises(DiagnosisError, match=said):
+        prepare_runs(load(root), load(root).given["sample_time"])
+
+
+def test_a_logger_glitch_is_mended_with_a_note_and_the_read_offs_are_the_clean_runs(make: MakeDataset,
+                                                                                   tmp_path: Path) -> None:
+    """A 5 in one-sample spike read as an overshoot of hundreds of percent and raised the noise floor."""
+    clean = _diagnose(_copy(make, tmp_path / "clean"), tmp_path / "clean")
+    root = _copy(make, tmp_path)
+    header, rows = _csv_rows(root / "step_kp25.csv")
+    y = header.split(",").index(next(c for c in header.split(",") if c.startswith("y ")))
+    rows[400][y] += 5.0
+    _write(root / "step_kp25.csv", header, rows)
+    d = _diagnose(root, tmp_path)
+    assert [n for n in d["notes"] if "logger glitch" in n] == [
+        next(n for n in d["notes"] if n.startswith("run step_kp25 (step_kp25.csv): the reading at row 402 (t = "))]
+    overshoot = {(r["quantity"], r["run"]): r["measured"] for r in clean["readoffs"]}
+    for r in d["readoffs"]:
+        assert r["measured"] == pytest.approx(overshoot[r["quantity"], r["run"]], rel=0.05, abs=1e-4)
+    assert d["noise"]["sigma"]["value"] == pytest.approx(clean["noise"]["sigma"]["value"], rel=0.05)
+    assert d["verdict"]["effect"] == clean["verdict"]["effect"]
