@@ -86,9 +86,10 @@ def read_manifest(root: Path) -> tuple[Manifest, Path]:
         raise DatasetError(f"{root}: no manifest.json or manifest.yaml")
     path, raw = paths[0], _read_raw(paths[0])
     for other in paths[1:]:
-        if _read_raw(other) != raw:
-            raise DatasetError(f"{path.name} and {other.name} are both in the folder and say different things; "
-                               "keep the one that describes the data")
+        if (second := _read_raw(other)) != raw:
+            key = next(k for k in sorted({*raw, *second}, key=str) if raw.get(k) != second.get(k))
+            raise DatasetError(f"{path.name} and {other.name} are both in the folder and say different things "
+                               f"(first in {key!r}); keep the one that describes the data")
     try:
         return Manifest.model_validate(raw), path
     except ValidationError as exc:

@@ -41,6 +41,8 @@ MAX_COMPARED = 30.0
 MIN_RUNS = 2
 #: Relative disagreement between the manifest gain and the gain ``u`` implies that is an error.
 GAIN_TOLERANCE = 0.1
+#: Quantile of the control law's |b| at which a row's weight in the implied gain is capped.
+GAIN_WEIGHT_CAP = 0.99
 NOISE_WINDOW, NOISE_ORDER = 13, 5
 #: Every weight of the quintic fit over 13 points, evaluated at any of them, is a multiple of 1/9724
 #: (11·13·17·4). Rounded to that grid, the weights are exact: the same bytes on any CPU, where
@@ -126,23 +128,31 @@ def sample_times(run: Run, T: float) -> Array:
     )
 
 
-def _on_grid(run: Run, T: float) -> GapRun:
-    """The run's rows as controller samples (one row per sample, evenly spaced: :func:`sample_times`)."""
-    t = sample_times(run, T)
-    run = replace(run, t=t) if t is not run.t else run
+def _on_grid(raw: Run, T: float) -> tuple[Run, GapRun, list[str]]:
+    """The run's rows as controller samples (one row per sample, evenly spaced: :func:`sample_times`), over at most
+    :data:`MAX_COMPARED` s after the command, its glitches mended (:mod:`grader.gap.glitches`): the recorded run
+    with those mended, the run on the grid and the notes on the glitches."""
+    t = sample_times(raw, T)
+    run = replace(raw, t=t) if t is not raw.t else raw
     start = command_start(run.t, run.r)
     n = int(np.searchsorted(run.t, start + MAX_COMPARED, side="right"))
     if n < run.t.size:  # a long record: its first MAX_COMPARED seconds after the command (a note says so)
         run = replace(run, t=run.t[:n], r=run.r[:n], y=run.y[:n], u=None if run.u is None else run.u[:n])
+    where = f"run {run.name} ({run.spec.file})"
     if run.t[-1] - start < MIN_DURATION or run.t.size < 50:
-        raise _Unusable(f"run {run.name} ({run.spec.file}): only {max(run.t[-1] - start, 0) * 1e3:.0f} ms recorded "
-                        f"after the command starts ({run.t.size} rows); the diagnosis needs at least "
-                        f"{MIN_DURATION * 1e3:.0f} ms and 50 rows")
-    scale = float(np.std(run.y))
-    if scale <= 0:
-        raise _Unusable(f"run {run.name} ({run.spec.file}): the position never changes; nothing to compare")
+        raise _Unusable(f"{where}: only {max(run.t[-1] - start, 0) * 1e3:.0f} ms recorded after the command starts "
+                        f"({run.t.size} rows in all); the diagnosis needs at least {MIN_DURATION * 1e3:.0f} ms after "
+                        "it and 50 rows")
+    y, notes, rows = mend(run.y, run.t, where)
+    if np.ptp(y) == 0:
+        but = f" apart from one-sample glitches (rows {', '.join(map(str, rows))})" if rows else ""
+        raise _Unusable(f"{where}: the position never changes{but}; nothing to compare")
+    if y is not run.y:
+        run, raw = replace(run, y=y), replace(raw, y=np.concatenate([y, raw.y[y.size:]]))
     noise = np.zeros(run.t.size) if run.spec.kind == "instability" else run.y - quintic_smooth(run.y)
-    return GapRun(run.name, run.spec.kind, run.controller, run.t, run.r, run.y, run.u, start, scale, noise)
+    gap_run = GapRun(run.name, run.spec.kind, run.controller, run.t, run.r, run.y, run.u, start, float(np.std(run.y)),
+                     noise)
+    return raw, gap_run, notes
 
 
 #: A run whose first readings lie further from its first command than this many times the noise floor and this
@@ -197,9 +207,11 @@ def implied_feedback_gain(run: GapRun, T: float) -> float | None:
     if use.sum() < 20 or not np.any(np.abs(run.u[use]) > 1e-6):
         return None
     b, u = basis[use], run.u[use]
-    # the least-absolute-deviation slope through 0, the |b|-weighted median of u/b: a few rows whose recorded y the
-    # controller never saw (a logger's spike) do not set it, nor do rows where a coarsely printed u reads 0
-    return float(np.quantile(u / b, 0.5, weights=np.abs(b), method="inverted_cdf"))
+    # the least-absolute-deviation slope through 0, the |b|-weighted median of u/b: rows where a coarsely printed u
+    # reads 0 do not set it; each weight is capped at the 99th percentile of |b|, so that a few rows whose recorded
+    # y the controller never saw (a logger's spike, which makes |b| huge there) do not set it either
+    w = np.minimum(np.abs(b), np.quantile(np.abs(b), GAIN_WEIGHT_CAP))
+    return float(np.quantile(u / b, 0.5, weights=w, method="inverted_cdf"))
 
 
 def check_gains(runs: list[GapRun], k_fb: float | None, T: float) -> float | None:
@@ -238,12 +250,13 @@ def prepare_runs(dataset: Dataset, T: float) -> tuple[Dataset, list[GapRun], lis
     reasons: list[str] = []
     mended: list[str] = []
     for raw in dataset.runs:
-        run, notes = mend(raw)
         try:
-            kept.append((run, _on_grid(run, T)))
-            mended += notes
+            run, gap_run, notes = _on_grid(raw, T)
         except _Unusable as exc:
             reasons.append(str(exc))
+            continue
+        kept.append((run, gap_run))
+        mended += notes
     if len(kept) < MIN_RUNS:
         raise DiagnosisError(f"{dataset.root.name}: {len(kept)} of the manifest's {len(dataset.runs)} runs can be "
                              f"compared, and the diagnosis needs at least {MIN_RUNS}: {'; '.join(reasons)}")

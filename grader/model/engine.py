@@ -378,7 +378,7 @@ def run(a: RigArrays, r: Array, noise: Array, K: NDArray[np.int64], m: NDArray[n
     m[j] RK4 substeps per sample where the plant is not linear between events."""
     n, k_max = r.shape
     Y, U, X = np.zeros((n, k_max)), np.zeros((n, k_max)), np.zeros((n, k_max))
-    _run_batch(plant.pack(a), pack_controls(a), np.array(r, dtype=np.float64, order="C"),
-               np.array(noise, dtype=np.float64, order="C"), np.asarray(K, dtype=np.int64),
+    _run_batch(plant.pack(a), pack_controls(a), np.ascontiguousarray(r, dtype=np.float64),
+               np.ascontiguousarray(noise, dtype=np.float64), np.asarray(K, dtype=np.int64),
                np.asarray(m, dtype=np.int64), Y, U, X)
     return Y, U, X

@@ -88,7 +88,7 @@ BAD_CASES = [
     ("path traversal", lambda d: _edit_manifest(d, calibration="../x.csv"), ["calibration", "plain file name"]),
     ("missing file", lambda d: (d / "ramp_pi.csv").unlink(), ["ramp_pi.csv", "not found"]),
     ("two manifests that differ", lambda d: _yaml_copy(d, station="other"),
-     ["manifest.json and manifest.yaml", "say different things"]),
+     ["manifest.json and manifest.yaml", "say different things (first in 'station')"]),
 ]
 
 

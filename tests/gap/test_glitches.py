@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from grader.gap.glitches import MOST, find_glitches
+from grader.gap.glitches import MOST, find_glitches, mend, search
 
 T = 0.0018
 t = np.arange(1500) * T
@@ -39,7 +39,15 @@ CASES = [
     ("two spikes of one size", _spiked(_ring(30), {1: 0.1, 1498: -0.1}), [1, 1498]),
     ("a spike on a noiseless flat reading", _spiked(np.zeros(50), {20: 1.0}), [20]),
     (f"{MOST} spikes", _spiked(STEP, {100: 1.0, 700: -2.0, 1200: 0.5}), [100, 700, 1200]),
-    (f"{MOST + 1} spikes (a property of the sensor)", _spiked(STEP, {100: 1.0, 700: -2.0, 1200: 0.5, 1300: 1.0}), []),
+    (f"{MOST + 1} spikes (a fault of the sensor)", _spiked(STEP, {100: 1.0, 700: -2.0, 1200: 0.5, 1300: 1.0}), []),
+    (f"{MOST} large spikes and a smaller one", _spiked(STEP, {100: 5.0, 700: 5.0, 1200: 5.0, 1300: 1.0}), []),
+    ("two spikes one sample apart (the reading between is clean)", _spiked(STEP, {300: 5.0, 302: 5.0}), [300, 302]),
+    ("a two-sample glitch", _spiked(STEP, {300: 5.0, 301: -5.0}), []),
+    ("the first reading", _spiked(STEP, {0: 5.0}), [0]),
+    ("the last reading and one inside", _spiked(STEP, {t.size - 1: 5.0, 400: 5.0}), [400, t.size - 1]),
+    ("a step followed within a sample, overshooting for one", np.array([0.0] * 20 + [1.5] + [1.0] * 100), []),
+    ("a step ringing at 2.2 samples a period", np.where(np.arange(200) < 20, 0.0, 1.0 - np.exp(
+        -0.25 * 2.86 * np.maximum(np.arange(200) - 20, 0)) * np.cos(2.86 * np.maximum(np.arange(200) - 20, 0))), []),
 ]
 
 
@@ -51,13 +59,33 @@ def test_glitches_found(name: str, y: np.ndarray, found: list[int]) -> None:
 @settings(max_examples=60, deadline=None)
 @given(periods=st.lists(st.floats(4.0, 400.0), min_size=1, max_size=3),
        amplitudes=st.lists(st.floats(1e-3, 1.0), min_size=3, max_size=3),
-       at=st.integers(1, t.size - 2), times=st.floats(4.5, 100.0), sign=st.sampled_from([-1.0, 1.0]))
+       at=st.integers(1, t.size - 2), times=st.floats(7.5, 100.0), sign=st.sampled_from([-1.0, 1.0]))
 def test_a_smooth_reading_has_none_and_a_spike_beyond_its_motion_is_found(
         periods: list[float], amplitudes: list[float], at: int, times: float, sign: float) -> None:
     """Sums of sinusoids sampled 4 to 400 times a period, with noise: no glitch; one reading moved out by more than
-    4 times the largest step of the reading (its jump to a neighbour is then more than 3 times any other step)
-    plus twice the noise's largest: exactly it."""
+    7 times the largest step of the reading plus twice the noise's largest: exactly it (its jump to either
+    neighbour is then more than 6 largest steps, 3 times any other step and 3 times how far its neighbours
+    differ, at most 2 largest steps)."""
     y = NOISE + sum(a * np.sin(2 * np.pi * t / (p * T)) for p, a in zip(periods, amplitudes))
     assert find_glitches(y) == []
     size = times * float(np.max(np.abs(np.diff(y)))) + 2 * float(np.max(np.abs(NOISE)))
     assert find_glitches(_spiked(y, {at: sign * size})) == [at]
+
+
+def test_glitches_one_sample_apart_are_mended_from_clean_neighbours_and_noted_by_row() -> None:
+    """Mending both from the readings as recorded once turned the clean reading between them into a new glitch."""
+    y, notes, rows = mend(_spiked(STEP, {300: 5.0, 302: 5.0}), t, "run a (a.csv)")
+    np.testing.assert_allclose(y[299:304], STEP[299:304], atol=1e-3)
+    assert rows == [302, 304]
+    assert notes[0].startswith(f"run a (a.csv): the reading at row 302 (t = {t[300]:.6g} s) lies +5 in off its "
+                               "neighbours and back within one sample")
+
+
+def test_too_many_glitches_are_compared_as_recorded_with_one_note() -> None:
+    recorded = _spiked(STEP, {100: 5.0, 700: 5.0, 1200: 5.0, 1300: 1.0})
+    assert search(recorded).too_many
+    y, notes, rows = mend(recorded, t, "run a (a.csv)")
+    assert y is recorded and rows == []
+    assert notes == ["run a (a.csv): 4 readings jump out and back within one sample (rows 102, 702, 1202, 1302; up "
+                     "to 5 in): more than 3 is a fault of the sensor or its wiring, not a logger's glitch; they are "
+                     "compared as recorded"]

@@ -202,19 +202,23 @@ def _keep_rows(root: Path, name: str, n: int) -> None:
 
 
 def test_a_run_with_nothing_to_compare_is_set_aside_and_the_others_diagnosed(make: MakeDataset, tmp_path: Path) -> None:
-    """A run stopped right after its command, and one whose position never changes (a sensor unplugged), once
-    stopped the whole diagnosis; each is now named in a note and the other runs are diagnosed."""
+    """A run stopped right after its command, and runs whose position never changes (a sensor unplugged; one with
+    a glitch), once stopped the whole diagnosis; each is now named in a note and the other runs are diagnosed."""
     root = _copy(make, tmp_path)
     _keep_rows(root, "step_kp25", 60)
-    header, rows = _csv_rows(root / "ramp_p.csv")
-    y = header.split(",").index(next(c for c in header.split(",") if c.startswith("y ")))
-    _write(root / "ramp_p.csv", header, [[*row[:y], 0.25, *row[y + 1:]] for row in rows])
+    for name, glitch in (("ramp_p", None), ("step_kp46", 300)):  # 0.1 in: np.std of it is 1.4e-17, not 0
+        header, rows = _csv_rows(root / f"{name}.csv")
+        y = header.split(",").index(next(c for c in header.split(",") if c.startswith("y ")))
+        flat = [[*row[:y], 0.1 + (k == glitch), *row[y + 1:]] for k, row in enumerate(rows)]
+        _write(root / f"{name}.csv", header, flat)
     d = _diagnose(root, tmp_path)
     aside = [n for n in d["notes"] if n.endswith("the run is set aside")]
-    assert len(aside) == 2
+    assert len(aside) == 3
     assert aside[0].startswith("run step_kp25 (step_kp25.csv): only ")
-    assert aside[1] == "run ramp_p (ramp_p.csv): the position never changes; nothing to compare; the run is set aside"
-    assert {g["run"] for g in d["gap"]["by_run"]} == {"step_kp10", "step_kp46", "instability", "ramp_pi"}
+    assert aside[1] == ("run step_kp46 (step_kp46.csv): the position never changes apart from one-sample glitches "
+                        "(rows 302); nothing to compare; the run is set aside")
+    assert aside[2] == "run ramp_p (ramp_p.csv): the position never changes; nothing to compare; the run is set aside"
+    assert {g["run"] for g in d["gap"]["by_run"]} == {"step_kp10", "instability", "ramp_pi"}
     assert d["verdict"]["effect"] == "none"
 
 
