@@ -3,9 +3,9 @@
 A logger glitch is one reading that jumps out and back within one sample: far from both its
 neighbours, on the same side of each, while they agree with each other to within a third of that
 jump (a reading that follows a step within one sample and overshoots for one does not come back, and
-is never one). The first or last reading is one where its step to its only neighbour is the jump and the run goes on
-from that neighbour in steps under a third of it.
-A reading is taken as one (:func:`search`) where its jump is more than
+is never one). The first or last reading is one where its step to its only neighbour is the jump and
+the run goes on from that neighbour in steps under a third of it. A reading is taken as one
+(:func:`search`) where its jump is more than
 
 * :data:`JUMP_TIMES` times the largest step between any other two successive readings of the run
   (the steps next to the :data:`SEEN` largest candidates left out): beyond anything the rig's motion
