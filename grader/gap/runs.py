@@ -143,10 +143,12 @@ def _on_grid(raw: Run, T: float) -> tuple[Run, GapRun, list[str]]:
         raise _Unusable(f"{where}: only {max(run.t[-1] - start, 0) * 1e3:.0f} ms recorded after the command starts "
                         f"({run.t.size} rows in all); the diagnosis needs at least {MIN_DURATION * 1e3:.0f} ms after "
                         "it and 50 rows")
-    y, notes, rows = mend(run.y, run.t, where)
-    if np.ptp(y) == 0:
-        but = f" apart from one-sample glitches (rows {', '.join(map(str, rows))})" if rows else ""
+    mended = mend(run.y, run.t, where)
+    if mended.flat:
+        many = "s" if len(mended.rows) > 1 else ""
+        but = f" apart from the reading{many} at row{many} {', '.join(map(str, mended.rows))}" if mended.rows else ""
         raise _Unusable(f"{where}: the position never changes{but}; nothing to compare")
+    y, notes = mended.y, mended.notes
     if y is not run.y:
         run, raw = replace(run, y=y), replace(raw, y=np.concatenate([y, raw.y[y.size:]]))
     noise = np.zeros(run.t.size) if run.spec.kind == "instability" else run.y - quintic_smooth(run.y)

@@ -215,8 +215,8 @@ def test_a_run_with_nothing_to_compare_is_set_aside_and_the_others_diagnosed(mak
     aside = [n for n in d["notes"] if n.endswith("the run is set aside")]
     assert len(aside) == 3
     assert aside[0].startswith("run step_kp25 (step_kp25.csv): only ")
-    assert aside[1] == ("run step_kp46 (step_kp46.csv): the position never changes apart from one-sample glitches "
-                        "(rows 302); nothing to compare; the run is set aside")
+    assert aside[1] == ("run step_kp46 (step_kp46.csv): the position never changes apart from the reading "
+                        "at row 302; nothing to compare; the run is set aside")
     assert aside[2] == "run ramp_p (ramp_p.csv): the position never changes; nothing to compare; the run is set aside"
     assert {g["run"] for g in d["gap"]["by_run"]} == {"step_kp10", "instability", "ramp_pi"}
     assert d["verdict"]["effect"] == "none"
