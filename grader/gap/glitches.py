@@ -100,12 +100,6 @@ def search(y: Array) -> Glitches:
     return Glitches(tuple(sorted(found)), mended, len(found) > SEEN)
 
 
-def find_glitches(y: Array) -> list[int]:
-    """Indices of the glitches of ``y`` to mend: none where there are more than :data:`MOST`."""
-    g = search(y)
-    return [] if g.too_many else list(g.found)
-
-
 @dataclass(frozen=True)
 class Mended:
     """A reading [in] with its glitches mended (as recorded where there are too many), a note on them, their CSV

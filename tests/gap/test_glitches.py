@@ -8,11 +8,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from grader.gap.glitches import MOST, find_glitches, mend, search
+from grader.gap.glitches import MOST, mend, search
 
 T = 0.0018
 t = np.arange(1500) * T
 NOISE = 1.4e-4 * np.random.default_rng(7).standard_normal(t.size)
+
+
+def find_glitches(y: np.ndarray) -> list[int]:
+    """The glitches :func:`mend` mends: none where there are too many."""
+    g = search(y)
+    return [] if g.too_many else list(g.found)
 
 
 def _ring(samples_per_period: float, amplitude: float = 0.05) -> np.ndarray:
