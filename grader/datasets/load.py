@@ -70,7 +70,7 @@ def _read_raw(path: Path) -> dict:
         raw = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
     except (json.JSONDecodeError, yaml.YAMLError, UnicodeDecodeError) as exc:
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise DatasetError(f"{path.name}: not valid {path.suffix[1:].upper()}: {first}") from None
+        raise DatasetError(f"{path.name}: not valid {'JSON' if path.suffix == '.json' else 'YAML'}: {first}") from None
     if not isinstance(raw, dict):
         raise DatasetError(f"{path.name}: must hold a mapping (object) at the top level")
     return raw

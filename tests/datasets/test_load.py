@@ -89,6 +89,8 @@ BAD_CASES = [
     ("missing file", lambda d: (d / "ramp_pi.csv").unlink(), ["ramp_pi.csv", "not found"]),
     ("two manifests that differ", lambda d: _yaml_copy(d, station="other"),
      ["manifest.json and manifest.yaml", "say different things (first in 'station')"]),
+    ("a broken YAML beside the JSON", lambda d: (d / "manifest.yml").write_text("runs: [\n"),
+     ["manifest.yml", "not valid YAML"]),
 ]
 
 
