@@ -81,7 +81,7 @@ def _warm(next_figure: Any) -> None:
     _NEXT = next_figure
     if hasattr(os, "nice"):
         os.nice(NICE)  # the diagnosis, importing scipy meanwhile, comes first; the figures come after it
-    importlib.import_module("grader.gap.plots")  # matplotlib, imported while the parent still works
+    importlib.import_module("grader.gap.plots").warm()  # matplotlib imported and fonts loaded while the parent works
     gc.freeze()  # what is imported stays: later collections skip it
     gc.enable()  # figures leave cyclic garbage (the parent may have paused the collector)
 
@@ -121,20 +121,23 @@ def plot_helpers() -> Iterator[PlotHelpers | None]:
 
 def draw_all(jobs: Sequence[Job], helpers: PlotHelpers | None) -> list[bytes]:
     """Every figure's PNG, in order. With ``helpers``, they draw while this process waits (it has not
-    imported matplotlib; importing it would cost more than the figures); a figure a dead helper held,
-    or any figure when none is left, is drawn here. The bytes do not depend on who draws which."""
+    imported matplotlib; importing it would cost more than the figures), the candidates' figure (the slowest:
+    laid out twice) first; a figure a dead helper held, or any figure when none is left, is drawn here. The
+    bytes do not depend on who draws which, nor in what order (a helper draws its runs on one reused canvas)."""
     if helpers is None:
         return [draw(job) for job in jobs]
     helpers.next_figure.value = 0
+    order = sorted(range(len(jobs)), key=lambda k: not isinstance(jobs[k], CandidatesFigure))  # the slowest first
+    queue = [jobs[k] for k in order]
     offered = []
     try:
-        offered += [helpers.pool.submit(_drain, list(jobs)) for _ in range(helpers.size)]
+        offered += [helpers.pool.submit(_drain, queue) for _ in range(helpers.size)]
     except BrokenExecutor:  # a helper died earlier: no more help
         pass
     drawn: dict[int, bytes] = {}
     for future in offered:
         try:
-            drawn.update(future.result())
+            drawn.update({order[k]: png for k, png in future.result().items()})
         except BrokenExecutor:
             pass
     return [drawn[k] if k in drawn else draw(job) for k, job in enumerate(jobs)]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,7 +14,7 @@ from matplotlib.figure import Figure
 from matplotlib.text import Text
 
 from grader.gap.diagnose import Analysis
-from grader.gap.plots import draw_run
+from grader.gap.plots import RunCanvas, draw_run, png
 from grader.gap.report import render_html, run_job, run_title
 from grader.gap.runs import GapRun
 from grader.gap.segments import segments_of
@@ -80,6 +81,20 @@ def test_segment_bands_start_at_the_step(kind: str) -> None:
     bottom = _figure(run).axes[1]
     starts = [p.get_x() for p in bottom.patches]
     assert starts and min(starts) >= run.start - 1e-12
+
+
+def test_a_reused_canvas_draws_the_bytes_a_new_one_draws() -> None:
+    """A figure helper draws its runs on one canvas: whatever it drew before (a runaway linear model that fixed
+    the limits, other segments, none), each run's PNG is the one a new figure gives."""
+    step, osc = _step_run(0.3), _oscillating_run()
+    shown = run_job(step, segments_of(step, 0.0004), step.y * 1.02, step.y * 0.995, "coulomb_friction")
+    runaway = run_job(osc, segments_of(osc, 0.0004), osc.y + np.expm1(3 * osc.t), osc.y, "none")
+    jobs = [shown, runaway, replace(shown, bands=(), title="bare")]
+    fresh = [png(draw_run(job), tight=False) for job in jobs]
+    assert len(set(fresh)) == len(jobs)
+    for order in itertools.permutations(range(len(jobs))):
+        canvas = RunCanvas()
+        assert [png(canvas.show(jobs[k]), tight=False) == fresh[k] for k in order] == [True] * len(jobs), order
 
 
 def test_titles_do_not_repeat_the_kind() -> None:
