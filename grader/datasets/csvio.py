@@ -69,6 +69,12 @@ def _parse_header(path: Path, cells: list[str], spec: TableSpec) -> list[tuple[s
 
 def read_table(path: Path, spec: TableSpec) -> Table:
     """Read a CSV into internal-unit arrays; raises DatasetError naming file, row and column."""
+    return read_rows(path, spec)[0]
+
+
+def read_rows(path: Path, spec: TableSpec) -> tuple[Table, NDArray[np.int64]]:
+    """:func:`read_table`'s arrays and each data row's line number in the file (1-based: the header's line is
+    before the first; blank lines are skipped, not counted out)."""
     if path.is_symlink():
         raise DatasetError(f"{path.name}: is a symbolic link; dataset files must be regular files in the folder")
     if not path.is_file():
@@ -79,25 +85,25 @@ def read_table(path: Path, spec: TableSpec) -> Table:
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
         raise DatasetError(f"{path.name}: not UTF-8 text") from None
-    rows = list(csv.reader(io.StringIO(text)))
-    rows = [r for r in rows if any(c.strip() for c in r)]
+    reader = csv.reader(io.StringIO(text))
+    rows = [(reader.line_num, r) for r in reader if any(c.strip() for c in r)]  # blank lines skipped, numbers kept
     if not rows:
         raise DatasetError(f"{path.name}: empty file")
-    if (sep := other_separator(rows[0])) is not None:
+    if (sep := other_separator(rows[0][1])) is not None:
         raise DatasetError(f"{path.name}: this file uses {sep!r} as separator; save it as CSV with commas (,)")
-    header = _parse_header(path, rows[0], spec)
+    header = _parse_header(path, rows[0][1], spec)
     body = rows[1:]
     if len(body) > MAX_ROWS:
         raise DatasetError(f"{path.name}: more than {MAX_ROWS} rows")
     if len(body) < spec.min_rows:
         raise DatasetError(f"{path.name}: {len(body)} data rows, need at least {spec.min_rows}")
-    return _convert(path, header, body)
+    return _convert(path, header, body), np.array([line for line, _ in body], dtype=np.int64)
 
 
-def _convert(path: Path, header: list[tuple[str, float, str]], body: list[list[str]]) -> Table:
+def _convert(path: Path, header: list[tuple[str, float, str]], body: list[tuple[int, list[str]]]) -> Table:
+    """The (line number in the file, cells) rows as internal-unit arrays."""
     data = np.empty((len(body), len(header)))
-    for i, row in enumerate(body):
-        line = i + 2  # 1-based, after the header
+    for i, (line, row) in enumerate(body):
         if len(row) != len(header):
             raise DatasetError(f"{path.name}: row {line} has {len(row)} cells, header has {len(header)}")
         for j, cell in enumerate(row):

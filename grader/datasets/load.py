@@ -12,7 +12,7 @@ import yaml
 from numpy.typing import NDArray
 from pydantic import ValidationError
 
-from grader.datasets.csvio import Table, read_table, write_table
+from grader.datasets.csvio import Table, read_rows, read_table, write_table
 from grader.datasets.schema import CALIBRATION, FLOW_TEST, FRICTION, RUN, Manifest, RunSpec
 from grader.errors import DatasetError, GraderError, validation_message
 from grader.model.params import Controller
@@ -30,10 +30,15 @@ class Run:
     r: NDArray[np.float64]
     y: NDArray[np.float64]
     u: NDArray[np.float64] | None = None
+    lines: NDArray[np.int64] | None = None  # each row's line in its file (None: row k on line k + 2)
 
     @property
     def name(self) -> str:
         return self.spec.name
+
+    def line(self, k: int) -> int:
+        """The file line (1-based) of row ``k`` (0-based) of the run as read."""
+        return int(self.lines[k]) if self.lines is not None else k + 2
 
     @property
     def controller(self) -> Controller:
@@ -103,7 +108,7 @@ def _check_run(run: Run) -> None:
     dt = np.diff(run.t)
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
-        raise DatasetError(f"{name}: time is not strictly increasing at row {bad[0] + 3}")
+        raise DatasetError(f"{name}: time is not strictly increasing at row {run.line(int(bad[0]) + 1)}")
 
 
 def _hash(root: Path, manifest_path: Path, files: list[str]) -> str:
@@ -131,8 +136,8 @@ def load(root: str | Path) -> Dataset:
     }
     runs = []
     for spec in manifest.runs:
-        table = read_table(root / spec.file, RUN)
-        run = Run(spec=spec, t=table["t"], r=table["r"], y=table["y"], u=table.get("u"))
+        table, lines = read_rows(root / spec.file, RUN)
+        run = Run(spec=spec, t=table["t"], r=table["r"], y=table["y"], u=table.get("u"), lines=lines)
         _check_run(run)
         runs.append(run)
     files = [n for n in (manifest.calibration, manifest.flow_test, manifest.friction) if n]

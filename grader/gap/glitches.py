@@ -24,6 +24,7 @@ note says so (the search stops after :data:`SEEN` + 1).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -103,7 +104,7 @@ def search(y: Array) -> Glitches:
 @dataclass(frozen=True)
 class Mended:
     """A reading [in] with its glitches mended (as recorded where there are too many), a note on them, their CSV
-    rows (a reading's index + 2), and whether it never changes apart from them."""
+    rows (lines in the file), and whether it never changes apart from them."""
 
     y: Array
     notes: list[str]
@@ -111,11 +112,11 @@ class Mended:
     flat: bool
 
 
-def mend(y: Array, t: Array, where: str) -> Mended:
+def mend(y: Array, t: Array, where: str, *, line: Callable[[int], int] = lambda k: k + 2) -> Mended:
     """The reading ``y`` [in] at times ``t`` [s] with its glitches mended and a note on each (``where`` names the run
-    and file); where there are too many, ``y`` as recorded and one note."""
+    and file, ``line`` a reading's line in it); where there are too many, ``y`` as recorded and one note."""
     g = search(y)
-    rows = [k + 2 for k in g.found]
+    rows = [line(k) for k in g.found]
     flat = bool(np.ptp(g.mended) == 0)
     if not g.found:
         return Mended(y, [], [], flat)
@@ -126,12 +127,12 @@ def mend(y: Array, t: Array, where: str) -> Mended:
         return Mended(y, [f"{where}: {count} readings jump out and back within one sample (rows {listed}; up to "
                           f"{np.max(np.abs(size)):.3g} in): more than {MOST} is a fault of the sensor or its wiring, "
                           "not a logger's glitch; they are compared as recorded"], rows, flat)
-    notes = [_note(where, k, t[k], float(size[k]), end=k in (0, y.size - 1)) for k in g.found]
+    notes = [_note(where, row, t[k], float(size[k]), end=k in (0, y.size - 1)) for k, row in zip(g.found, rows)]
     return Mended(g.mended, notes, rows, flat)
 
 
-def _note(where: str, k: int, t: float, size: float, *, end: bool) -> str:
+def _note(where: str, row: int, t: float, size: float, *, end: bool) -> str:
     off = "its neighbour (it ends the run)" if end else "its neighbours and back within one sample"
-    return (f"{where}: the reading at row {k + 2} (t = {t:.6g} s) lies {size:+.3g} in off {off}, more than "
+    return (f"{where}: the reading at row {row} (t = {t:.6g} s) lies {size:+.3g} in off {off}, more than "
             f"{JUMP_TIMES:g} times any other step of the run: a logger glitch, compared as the median of its four "
             "nearest readings")

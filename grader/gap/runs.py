@@ -123,7 +123,7 @@ def sample_times(run: Run, T: float) -> Array:
     i = int(broken[0])
     raise DiagnosisError(
         f"run {run.name} ({run.spec.file}): rows are {(t[-1] - t[0]) / (t.size - 1) * 1e3:.4g} ms apart on average, "
-        f"not evenly at the manifest's sample_time of {T * 1e3:g} ms (row {i + 2} is {dt[i - 1] * 1e3:.4g} ms after "
+        f"not evenly at the manifest's sample_time of {T * 1e3:g} ms (row {run.line(i)} is {dt[i - 1] * 1e3:.4g} ms after "
         "the one before); the diagnosis needs one row per controller sample"
     )
 
@@ -143,7 +143,7 @@ def _on_grid(raw: Run, T: float) -> tuple[Run, GapRun, list[str]]:
         raise _Unusable(f"{where}: only {max(run.t[-1] - start, 0) * 1e3:.0f} ms recorded after the command starts "
                         f"({run.t.size} rows in all); the diagnosis needs at least {MIN_DURATION * 1e3:.0f} ms after "
                         "it and 50 rows")
-    mended = mend(run.y, run.t, where)
+    mended = mend(run.y, run.t, where, line=run.line)
     if mended.flat:
         many = "s" if len(mended.rows) > 1 else ""
         but = f" apart from the reading{many} at row{many} {', '.join(map(str, mended.rows))}" if mended.rows else ""

@@ -131,6 +131,25 @@ def test_non_monotonic_time_and_too_few_points(ds: Path) -> None:
         load(ds)
 
 
+def test_blank_lines_inside_a_file_do_not_shift_the_rows_an_error_names(ds: Path) -> None:
+    """Rows are the file's lines: two blank lines before data line 5 put a bad cell on data line 7 at line 9."""
+    path = ds / "step_kp25.csv"
+    text = path.read_text()
+    lines = text.splitlines()
+    cells = lines[6].split(",")
+    cells[2] = "abc"
+    lines[6] = ",".join(cells)
+    path.write_text("\n".join([*lines[:4], "", " , ", *lines[4:]]) + "\n")
+    with pytest.raises(DatasetError, match=r"step_kp25.csv: row 9, column 'y': 'abc' is not a number"):
+        load(ds)
+    path.write_text(text)
+    lines = (ds / "ramp_p.csv").read_text().splitlines()
+    lines[10], lines[11] = lines[11], lines[10]
+    (ds / "ramp_p.csv").write_text("\n".join([*lines[:3], "", *lines[3:]]) + "\n")
+    with pytest.raises(DatasetError, match=r"ramp_p.csv: time is not strictly increasing at row 13"):
+        load(ds)
+
+
 def test_cli_key_errors_are_one_line_without_traceback(ds: Path, capsys: pytest.CaptureFixture[str]) -> None:
     _replace_header(ds, "flow.csv", "input [V],flow [lbf]")
     assert main(["key", str(ds), "-o", str(ds / "key.json")]) == 2

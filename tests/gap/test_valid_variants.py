@@ -224,6 +224,21 @@ def test_a_run_with_nothing_to_compare_is_set_aside_and_the_others_diagnosed(mak
     assert d["verdict"]["effect"] == "none"
 
 
+def test_a_note_names_the_file_line_of_a_glitch_after_blank_lines(make: MakeDataset, tmp_path: Path) -> None:
+    """Data row 300 of a run written with two blank lines before it is on line 304 of the file."""
+    root = _copy(make, tmp_path)
+    header, rows = _csv_rows(root / "ramp_p.csv")
+    y = header.split(",").index(next(c for c in header.split(",") if c.startswith("y ")))
+    _write(root / "ramp_p.csv", header, [[*row[:y], 0.1 + (k == 300), *row[y + 1:]] for k, row in enumerate(rows)])
+    lines = (root / "ramp_p.csv").read_text().splitlines()
+    (root / "ramp_p.csv").write_text("\n".join([*lines[:100], "", "", *lines[100:]]) + "\n")
+    ds = load(root)
+    _, kept, notes = prepare_runs(ds, ds.given["sample_time"])
+    assert "ramp_p" not in {r.name for r in kept}
+    assert ("run ramp_p (ramp_p.csv): the position never changes apart from the reading at row 304; nothing to "
+            "compare; the run is set aside") in notes
+
+
 def test_fewer_than_two_runs_to_compare_is_one_line_naming_each_run_set_aside(make: MakeDataset,
                                                                              tmp_path: Path) -> None:
     root = _copy(make, tmp_path)
