@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -81,9 +82,22 @@ def _read_raw(path: Path) -> dict:
     return raw
 
 
+def _same_meaning(a: dict, b: dict) -> bool:
+    """Whether two valid manifests say the same in other words: their fields with defaults filled in, and the given
+    values in internal units (``2.53 ms`` is ``0.00253 s``; a weight is the mass it implies)."""
+    try:
+        ma, mb = Manifest.model_validate(a), Manifest.model_validate(b)
+        va, vb = ma.given.values(), mb.given.values()
+    except (ValidationError, GraderError):
+        return False
+    return (ma.model_dump(exclude={"given"}) == mb.model_dump(exclude={"given"}) and va.keys() == vb.keys()
+            and all(math.isclose(va[k], vb[k], rel_tol=1e-9) for k in va))
+
+
 def read_manifest(root: Path) -> tuple[Manifest, Path]:
     """Find and validate the manifest in ``root``. Two manifests (say a JSON one and the YAML it was written
-    from) must say the same; the first of :data:`MANIFEST_NAMES` is the one read."""
+    from) must say the same, in any words (:func:`_same_meaning`); the first of :data:`MANIFEST_NAMES` is the one
+    read."""
     if not root.is_dir():
         raise DatasetError(f"{root}: not a dataset folder")
     paths = [root / n for n in MANIFEST_NAMES if (root / n).is_file()]
@@ -91,7 +105,7 @@ def read_manifest(root: Path) -> tuple[Manifest, Path]:
         raise DatasetError(f"{root}: no manifest.json or manifest.yaml")
     path, raw = paths[0], _read_raw(paths[0])
     for other in paths[1:]:
-        if (second := _read_raw(other)) != raw:
+        if (second := _read_raw(other)) != raw and not _same_meaning(raw, second):
             key = next(k for k in sorted({*raw, *second}, key=str) if raw.get(k) != second.get(k))
             raise DatasetError(f"{path.name} and {other.name} are both in the folder and say different things "
                                f"(first in {key!r}); keep the one that describes the data")

@@ -65,6 +65,10 @@ def _replace_header(ds: Path, file: str, header: str) -> None:
     (ds / file).write_text("\n".join([header, *lines[1:]]) + "\n")
 
 
+def _given(ds: Path) -> dict[str, str]:
+    return json.loads((ds / "manifest.json").read_text())["given"]
+
+
 def _yaml_copy(ds: Path, **changes: object) -> None:
     """manifest.yaml beside manifest.json: the JSON's content with ``changes``."""
     m = json.loads((ds / "manifest.json").read_text())
@@ -89,6 +93,8 @@ BAD_CASES = [
     ("missing file", lambda d: (d / "ramp_pi.csv").unlink(), ["ramp_pi.csv", "not found"]),
     ("two manifests that differ", lambda d: _yaml_copy(d, station="other"),
      ["manifest.json and manifest.yaml", "say different things (first in 'station')"]),
+    ("two manifests whose sample times differ", lambda d: _yaml_copy(d, given={**_given(d), "sample_time": "1.44 ms"}),
+     ["manifest.json and manifest.yaml", "say different things (first in 'given')"]),
     ("a broken YAML beside the JSON", lambda d: (d / "manifest.yml").write_text("runs: [\n"),
      ["manifest.yml", "not valid YAML"]),
 ]
@@ -188,8 +194,12 @@ def test_long_bad_cells_are_clipped_in_messages(ds: Path) -> None:
     assert len(str(exc.value)) < 200
 
 
-def test_a_yaml_manifest_that_says_what_the_json_one_says_is_no_conflict(ds: Path) -> None:
+@pytest.mark.parametrize("changes", [{}, {"given": {"weight": "0.0290 klbf", "bore": "12.7 mm", "rod": "0.25 in",
+                                                   "supply_pressure": "1000 psi", "Kamp": "0.005 A/V",
+                                                   "i_max": "0.05 A", "sample_time": "1 ms"}}],
+                         ids=["as written", "in other units"])
+def test_a_yaml_manifest_that_says_what_the_json_one_says_is_no_conflict(ds: Path, changes: dict) -> None:
     before = load(ds)
-    _yaml_copy(ds)
+    _yaml_copy(ds, **changes)
     after = load(ds)
     assert after.manifest == before.manifest and after.inputs_sha256 == before.inputs_sha256
