@@ -4,7 +4,7 @@ A :class:`Point` is one model (linear parameters plus an :class:`EffectSet`). A 
 ``(point, run index)`` asks for that model's position x_k [in] on that run, with the
 model's controller reading x_k plus the run's estimated reading noise. All requests go
 through the compiled rig engine (:func:`grader.model.rig.simulate_positions`), whatever their
-number (half of them in a worker thread when :func:`worker` provides one: the compiled engine
+number (half of each run's in a worker thread when :func:`worker` provides one: the compiled engine
 releases the GIL, so the diagnosis uses two cores). Known hardware limits (DAC ±10 V,
 amplifier ±i_max) are part of every model, as they are of the rig.
 """
@@ -12,6 +12,7 @@ amplifier ±i_max) are part of every model, as they are of the rig.
 from __future__ import annotations
 
 import os
+from collections import Counter
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
 from contextlib import contextmanager
@@ -59,6 +60,19 @@ def _positions(points: Sequence[Point], which: Sequence[int], runs: Sequence[tup
                           max_substeps=FIT_MAX_SUBSTEPS).run()
 
 
+def _halves(requests: Sequence[tuple[Point, int]]) -> list[bool]:
+    """Which requests the worker takes: every other request of each run, starting with the first of the odd runs
+    and the second of the even ones. A run can cost ten times another (a stick-slip step's events), so each run is
+    shared; every other request of the whole list gave all of one run's requests to one thread on a fit's batches
+    (each point asks for every run, in order)."""
+    seen: Counter[int] = Counter()
+    away = []
+    for _, i in requests:
+        away.append((seen[i] + i) % 2 == 1)
+        seen[i] += 1
+    return away
+
+
 class Backend:
     """Simulates requests (see module docstring)."""
 
@@ -68,16 +82,16 @@ class Backend:
         self._inputs = [(r.controller, r.r, r.noise) for r in self.runs]
 
     def __call__(self, requests: Sequence[tuple[Point, int]]) -> list[Array]:
-        """x_k [in] for each request, in order. With an executor, every other request is simulated
-        there, as a batch of its own, while this thread simulates the rest."""
+        """x_k [in] for each request, in order. With an executor, half the requests (:func:`_halves`) are
+        simulated there, as a batch of their own, while this thread simulates the rest."""
         if self.executor is None or len(requests) < 2:
             return self._here(requests)
-        there = requests[1::2]
+        away = _halves(requests)
+        there = [q for q, a in zip(requests, away) if a]
         pending = self.executor.submit(_positions, [pt for pt, _ in there], [i for _, i in there], self._inputs)
-        here = self._here(requests[::2])
-        out: list[Array] = [np.empty(0)] * len(requests)
-        out[::2], out[1::2] = here, pending.result()
-        return out
+        here = iter(self._here([q for q, a in zip(requests, away) if not a]))
+        done = iter(pending.result())
+        return [next(done) if a else next(here) for a in away]
 
     def _here(self, requests: Sequence[tuple[Point, int]]) -> list[Array]:
         return _positions([pt for pt, _ in requests], [i for _, i in requests], self._inputs)
