@@ -130,6 +130,9 @@ class RunCanvas:
             self.shown.append(self.fig.legend(handles=keys, loc="lower center", bbox_to_anchor=(0.5, 0.0),
                                               ncol=len(keys), fontsize=8, frameon=False, title="segments (shaded)",
                                               title_fontsize=8))
+        for ax in (top, bottom):  # a new figure's unit view first: the zero line's limits pass through it
+            ax.set_xlim(0.0, 1.0)
+            ax.set_ylim(0.0, 1.0)
         for ax in (top, bottom):
             ax.relim()
             ax.set_autoscale_on(True)

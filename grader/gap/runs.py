@@ -204,9 +204,16 @@ def current_demand(runs: list[GapRun], k_fb: float, T: float, Kamp: float) -> fl
 def implied_feedback_gain(run: GapRun, T: float, y: Array | None = None) -> float | None:
     """The k_fb [V/in or 1] that makes the manifest's gains reproduce the recorded u from the reading ``y`` [in]
     (default: the run's), or None without u."""
+    fit = _gain_fit(run, T, run.y if y is None else y)
+    return None if fit is None else fit[0]
+
+
+def _gain_fit(run: GapRun, T: float, y: Array) -> tuple[float, float] | None:
+    """(the k_fb the recorded u implies from reading ``y``, the weighted mean |u − k_fb·law| [V] it leaves), or None
+    without u or without 20 rows that move it."""
     if run.u is None:
         return None
-    basis = control_law(run.controller, run.r - (run.y if y is None else y), T)
+    basis = control_law(run.controller, run.r - y, T)
     use = (np.abs(run.u) < 0.95 * DAC_LIMIT) & (np.abs(basis) > 1e-12)
     if use.sum() < 20 or not np.any(np.abs(run.u[use]) > 1e-6):
         return None
@@ -215,29 +222,31 @@ def implied_feedback_gain(run: GapRun, T: float, y: Array | None = None) -> floa
     # reads 0 do not set it; each weight is capped at the 99th percentile of |b|, so that a few rows whose recorded
     # y the controller never saw (a logger's spike, which makes |b| huge there) do not set it either
     w = np.minimum(np.abs(b), np.quantile(np.abs(b), GAIN_WEIGHT_CAP))
-    return float(np.quantile(u / b, 0.5, weights=w, method="inverted_cdf"))
+    k = float(np.quantile(u / b, 0.5, weights=w, method="inverted_cdf"))
+    return k, float(np.mean(np.abs(u - k * b)))
 
 
-def _implied_gains(run: GapRun, T: float) -> list[float]:
-    """The k_fb the recorded u implies from the reading as compared, and, where it still holds glitches (too many
-    to mend: compared as recorded), from the reading with them mended. A logger's glitch is a reading the
-    controller never saw, and a PI's integral of four 5 in spikes took the first to 1.43 times the gains."""
+def controller_gain(run: GapRun, T: float) -> float | None:
+    """The k_fb the recorded u implies (:func:`implied_feedback_gain`) from the reading the controller saw. Where
+    the reading as compared still holds glitches (too many to mend: compared as recorded), that is the reading as
+    recorded or with them mended, whichever u follows more closely: a logger's glitch is a reading the controller
+    never saw (a PI's integral of four 5 in spikes took the gains to 1.43 times the manifest's), a sensor's fault
+    one it saw."""
     found = glitches.search(run.y)
-    ys = [None, found.mended] if found.found else [None]
-    return [v for y in ys if (v := implied_feedback_gain(run, T, y)) is not None]
+    fits = [f for y in ([run.y, found.mended] if found.found else [run.y]) if (f := _gain_fit(run, T, y))]
+    return min(fits, key=lambda f: f[1])[0] if fits else None
 
 
 def check_gains(runs: list[GapRun], k_fb: float | None, T: float) -> float | None:
-    """Raise if a run's recorded u contradicts its manifest gain (with the reading as compared, and with its
-    glitches mended: :func:`_implied_gains`); returns the implied k_fb (median)."""
-    implied = {r.name: _implied_gains(r, T) for r in runs}
-    known = {n: vs for n, vs in implied.items() if vs}
+    """Raise if a run's recorded u contradicts its manifest gain (:func:`controller_gain`); returns the implied
+    k_fb (median)."""
+    implied = {r.name: controller_gain(r, T) for r in runs}
+    known = {n: v for n, v in implied.items() if v is not None}
     if not known:
         return None
-    ref = k_fb if k_fb is not None else float(np.median([vs[0] for vs in known.values()]))
+    ref = k_fb if k_fb is not None else float(np.median(list(known.values())))
     for run in runs:
-        vs = known.get(run.name)
-        v = None if vs is None else min(vs, key=lambda x: abs(np.log(x / ref)) if x > 0 else np.inf)
+        v = known.get(run.name)
         if v is not None and (v <= 0 or abs(v / ref - 1) > GAIN_TOLERANCE):
             c = run.controller
             factor = v / ref

@@ -42,6 +42,18 @@ def test_a_worker_thread_returns_what_this_thread_computes(make: MakeDataset) ->
         assert a.shape == b.shape and np.array_equal(a, b) and np.array_equal(a, c)
 
 
+def test_a_batch_whose_runs_all_fall_to_one_thread_is_still_simulated(make: MakeDataset) -> None:
+    """A fold's last round asks one point for runs 0 and 2 only: every other request of each run puts both here
+    and none in the worker, which once got an empty batch and raised."""
+    runs, requests = _requests(make)
+    pt = requests[0][0]
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        both = Backend(runs, executor=pool)
+        for which in ((0, 2), (1, 3), (1,), (0, 2, 4)):
+            batch = [(pt, i) for i in which]
+            assert all(np.array_equal(a, b) for a, b in zip(both(batch), Backend(runs)(batch), strict=True))
+
+
 def test_the_worker_is_a_thread_where_a_second_core_exists_and_the_engine_lets_it_run() -> None:
     """The diagnosis gets its worker thread on two cores or more and none when disabled; the engine's batch loop
     releases the GIL, without which the thread would wait for this one."""

@@ -17,8 +17,9 @@ from grader.cli import main
 from grader.datasets import ControllerSpec, Run, RunSpec, load
 from grader.errors import DiagnosisError
 from grader.gap.candidates import SATURATION, make_candidates
-from grader.gap.runs import (MAX_COMPARED, check_gains, cut_note, implied_feedback_gain, prepare_runs, sample_times,
-                             start_offset_note)
+from grader.gap.runs import (MAX_COMPARED, check_gains, control_law, cut_note, implied_feedback_gain, prepare_runs,
+                             sample_times, start_offset_note)
+from grader.model.rig_setup import DAC_LIMIT
 from grader.stations import Station
 from grader.synth import make_dataset
 
@@ -89,26 +90,31 @@ def test_glitched_position_samples_do_not_blame_the_gains(make: MakeDataset, spi
     assert implied_feedback_gain(replace(run, y=y), T) == pytest.approx(implied_feedback_gain(run, T), rel=0.01)
 
 
-@pytest.mark.parametrize("scale", [1.0, 1.5])
-def test_a_pi_runs_gains_are_checked_on_its_reading_with_unmended_glitches_mended(make: MakeDataset,
-                                                                                 scale: float) -> None:
-    """Four 5 in logger spikes in a PI run are too many to mend, and the integral of the readings the controller
-    never saw took the gains u implies to 1.43 times the manifest's: the run was refused. They are checked on the
-    reading with the spikes mended too, and wrong gains (u 1.5 times what they give) are still refused."""
+@pytest.mark.parametrize(("seen", "scale"), [(False, 1.0), (False, 1.5), (True, 1.0), (True, 1.43)])
+def test_a_pi_runs_gains_are_checked_on_the_reading_its_controller_saw(make: MakeDataset, seen: bool,
+                                                                      scale: float) -> None:
+    """Four 5 in spikes in a PI run are too many to mend. Logged only (the controller never saw them), the integral
+    of them took the gains u implies to 1.43 times the manifest's, and the run was refused; a sensor's fault (the
+    controller saw them) must still be checked as recorded, or gains 1.43 times the manifest's would pass. The
+    reading u follows more closely is the one checked: right gains pass, wrong ones are refused, either way."""
     ds = load(make("variants_linear"))
     T = ds.given["sample_time"]
     runs = prepare_runs(ds, T)[1]
     k = next(i for i, r in enumerate(runs) if r.controller.Ki > 0)
     clean = check_gains(runs, None, T)
-    y = runs[k].y.copy()
-    y[[runs[k].n // 3, 5, runs[k].n // 2, 2 * runs[k].n // 3]] += 5.0
-    assert implied_feedback_gain(replace(runs[k], y=y), T) > 1.2 * clean  # what the check once used
-    spiked = [*runs[:k], replace(runs[k], y=y, u=scale * runs[k].u), *runs[k + 1:]]
+    run = runs[k]
+    y = run.y.copy()
+    y[[run.n // 3, 5, run.n // 2, 2 * run.n // 3]] += 5.0
+    u = np.clip(clean * control_law(run.controller, run.r - y, T), -DAC_LIMIT, DAC_LIMIT) if seen else run.u
+    spiked = replace(run, y=y, u=scale * u)
+    if not seen:
+        assert implied_feedback_gain(replace(run, y=y), T) > 1.2 * clean  # what the check once used
+    runs = [*runs[:k], spiked, *runs[k + 1:]]
     if scale == 1.0:
-        assert check_gains(spiked, None, T) == pytest.approx(clean, rel=1e-6)
+        assert check_gains(runs, None, T) == pytest.approx(clean, rel=1e-6)
     else:
-        with pytest.raises(DiagnosisError, match=f"run {runs[k].name}: the manifest gives Kp"):
-            check_gains(spiked, None, T)
+        with pytest.raises(DiagnosisError, match=f"run {run.name}: the manifest gives Kp"):
+            check_gains(runs, None, T)
 
 
 @pytest.mark.parametrize("decimals", [1, 2])
