@@ -86,7 +86,7 @@ class RunCanvas:
 
     The legends sit outside the panels so they never cover the data; the segments are named in a key under the
     figure, not by labels over the bands, and their shading starts at the step. The panels, lines and ticks are
-    made once (a third of a figure's time); :meth:`show` replaces the data, title, legends and bands, and
+    made once (a fifth of a figure's time); :meth:`show` replaces the data, title, legends and bands, and
     rescales both panels as a new figure would.
     """
 

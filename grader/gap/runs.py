@@ -124,8 +124,8 @@ def sample_times(run: Run, T: float) -> Array:
     i = int(broken[0])
     raise DiagnosisError(
         f"run {run.name} ({run.spec.file}): rows are {(t[-1] - t[0]) / (t.size - 1) * 1e3:.4g} ms apart on average, "
-        f"not evenly at the manifest's sample_time of {T * 1e3:g} ms (row {run.line(i)} is {dt[i - 1] * 1e3:.4g} ms after "
-        "the one before); the diagnosis needs one row per controller sample"
+        f"not evenly at the manifest's sample_time of {T * 1e3:g} ms (row {run.line(i)} is {dt[i - 1] * 1e3:.4g} ms "
+        "after the one before); the diagnosis needs one row per controller sample"
     )
 
 
@@ -209,8 +209,8 @@ def implied_feedback_gain(run: GapRun, T: float, y: Array | None = None) -> floa
 
 
 def _gain_fit(run: GapRun, T: float, y: Array) -> tuple[float, float] | None:
-    """(the k_fb the recorded u implies from reading ``y``, the weighted mean |u − k_fb·law| [V] it leaves), or None
-    without u or without 20 rows that move it."""
+    """(the k_fb the recorded u implies from reading ``y``, the mean |u − k_fb·law| [V] it leaves on the rows used),
+    or None without u or without 20 rows that move it."""
     if run.u is None:
         return None
     basis = control_law(run.controller, run.r - y, T)
