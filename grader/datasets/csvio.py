@@ -85,8 +85,7 @@ def read_rows(path: Path, spec: TableSpec) -> tuple[Table, NDArray[np.int64]]:
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
         raise DatasetError(f"{path.name}: not UTF-8 text") from None
-    reader = csv.reader(io.StringIO(text))
-    rows = [(reader.line_num, r) for r in reader if any(c.strip() for c in r)]  # blank lines skipped, numbers kept
+    rows = _records(path, text)
     if not rows:
         raise DatasetError(f"{path.name}: empty file")
     if (sep := other_separator(rows[0][1])) is not None:
@@ -98,6 +97,24 @@ def read_rows(path: Path, spec: TableSpec) -> tuple[Table, NDArray[np.int64]]:
     if len(body) < spec.min_rows:
         raise DatasetError(f"{path.name}: {len(body)} data rows, need at least {spec.min_rows}")
     return _convert(path, header, body), np.array([line for line, _ in body], dtype=np.int64)
+
+
+def _records(path: Path, text: str) -> list[tuple[int, list[str]]]:
+    """The file's records that are not blank, each with the line it starts on (1-based; a quoted cell may span
+    lines). Strict quoting: a quote left open, or text after a closing quote, is an error naming the record."""
+    reader = csv.reader(io.StringIO(text), strict=True)
+    out = []
+    while True:
+        start = reader.line_num + 1
+        try:
+            cells = next(reader)
+        except StopIteration:
+            return out
+        except csv.Error as exc:  # a quote left open, or a cell over the csv module's 131072 characters
+            hint = "; a quote (\") opens there and is never closed" if "end of data" in str(exc) else ""
+            raise DatasetError(f"{path.name}: row {start} is not readable as CSV ({exc}){hint}") from None
+        if any(c.strip() for c in cells):
+            out.append((start, cells))
 
 
 def _convert(path: Path, header: list[tuple[str, float, str]], body: list[tuple[int, list[str]]]) -> Table:

@@ -156,6 +156,26 @@ def test_blank_lines_inside_a_file_do_not_shift_the_rows_an_error_names(ds: Path
         load(ds)
 
 
+@pytest.mark.parametrize(("cell", "said"), [
+    ('"' + "x" * 200_000 + '"', "step_kp25.csv: row 7 is not readable as CSV (field larger than field limit"),
+    ('"0.1', 'step_kp25.csv: row 7 is not readable as CSV (unexpected end of data); a quote (") opens there'),
+    ('"0.1"5', "step_kp25.csv: row 7 is not readable as CSV (',' expected after '\"')"),
+    ('"0.1\n0.2"', "step_kp25.csv: row 7, column 'y': '0.1\\n0.2' is not a number"),
+], ids=["a cell over 128 kB", "an unclosed quote", "text after a quote", "a quoted cell over two lines"])
+def test_a_record_the_csv_module_refuses_or_spans_lines_is_named_where_it_starts(ds: Path, cell: str,
+                                                                                 said: str) -> None:
+    """A record is named by the line it starts on; one the csv module cannot read was a traceback."""
+    path = ds / "step_kp25.csv"
+    lines = path.read_text().splitlines()
+    cells = lines[6].split(",")
+    cells[2] = cell
+    lines[6] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(DatasetError) as exc:
+        load(ds)
+    assert str(exc.value).startswith(said)
+
+
 def test_cli_key_errors_are_one_line_without_traceback(ds: Path, capsys: pytest.CaptureFixture[str]) -> None:
     _replace_header(ds, "flow.csv", "input [V],flow [lbf]")
     assert main(["key", str(ds), "-o", str(ds / "key.json")]) == 2
