@@ -77,6 +77,8 @@ def read_rows(path: Path, spec: TableSpec) -> tuple[Table, NDArray[np.int64]]:
     before the first; blank lines are skipped, not counted out)."""
     if path.is_symlink():
         raise DatasetError(f"{path.name}: is a symbolic link; dataset files must be regular files in the folder")
+    if path.is_dir():
+        raise DatasetError(f"{path.name}: is a folder, not a CSV file")
     if not path.is_file():
         raise DatasetError(f"{path.name}: file not found in {path.parent}")
     if path.stat().st_size > MAX_BYTES:
@@ -126,12 +128,16 @@ def _convert(path: Path, header: list[tuple[str, float, str]], body: list[tuple[
         for j, cell in enumerate(row):
             if math.isnan(header[j][1]):
                 continue
+            where = f"{path.name}: row {line}, column {header[j][0]!r}: {_clip(cell)!r}"
             try:
-                value = float(cell)
+                value = float(cell) if "_" not in cell else math.nan  # float() reads 1_0 as 10
             except ValueError:
-                raise DatasetError(f"{path.name}: row {line}, column {header[j][0]!r}: {_clip(cell)!r} is not a number") from None
-            if not math.isfinite(value):
-                raise DatasetError(f"{path.name}: row {line}, column {header[j][0]!r}: {_clip(cell)!r} is not a finite number")
+                value = math.nan
+            if math.isnan(value) and "nan" not in cell.lower():
+                raise DatasetError(f"{where} is not a number")
+            if not math.isfinite(value) or not math.isfinite(value * header[j][1]):
+                raise DatasetError(f"{where} is not a finite number" + (
+                    f" once converted to {header[j][2]}" if math.isfinite(value) else ""))
             data[i, j] = value
     return {name: data[:, j] * scale for j, (name, scale, _) in enumerate(header) if not math.isnan(scale)}
 

@@ -6,6 +6,7 @@ for dimension here and converted to internal floats by :meth:`Given.values`.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from typing import Literal
@@ -13,7 +14,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from grader.errors import ModelError
-from grader.model.params import Controller, mass_from_weight, piston_area
+from grader.model.params import G_IN_PER_S2, Controller, mass_from_weight, piston_area
 from grader.units import quantity_to_float
 
 RunKind = Literal["step", "ramp", "instability"]
@@ -29,6 +30,8 @@ GIVEN_UNITS: dict[str, str] = {
     "i_max": "mA",
     "sample_time": "s",
 }
+#: Range of a given value in its unit of :data:`GIVEN_UNITS` (the rod may be 0).
+GIVEN_RANGE = (1e-9, 1e9)
 _NAME = re.compile(r"^[A-Za-z0-9_.\-]{1,64}$")
 
 
@@ -61,6 +64,12 @@ class Given(BaseModel):
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)!r}")
         if values["M"] <= 0:
             raise ValueError("the moving mass must be positive")
+        sizes = {n: values[n] for n in ("bore", "supply_pressure", "Kamp", "i_max", "sample_time")}
+        sizes["weight" if self.weight is not None else "mass"] = values["M"] * (G_IN_PER_S2 if self.weight else 1.0)
+        for name, v in sizes.items():  # beyond these, products of them overflow a double somewhere in the loop
+            if not GIVEN_RANGE[0] <= v <= GIVEN_RANGE[1]:
+                raise ValueError(f"{name} = {getattr(self, name)!r} is outside the range a rig can have "
+                                 f"({GIVEN_RANGE[0]:g} to {GIVEN_RANGE[1]:g} {GIVEN_UNITS[name]})")
         piston_area(values["bore"], values["rod"])
         return self
 
@@ -75,17 +84,26 @@ class Given(BaseModel):
             out["M"] = mass_from_weight(quantity_to_float(self.weight, "lbf", where="given.weight"))
         else:
             out["M"] = quantity_to_float(self.mass or "", "lbf*s**2/in", where="given.mass")
-        out["A"] = piston_area(out["bore"], out["rod"]) if out["rod"] < out["bore"] else float("nan")
+        try:
+            out["A"] = piston_area(out["bore"], out["rod"]) if out["rod"] < out["bore"] else float("nan")
+        except OverflowError:  # a bore beyond 1e154 in
+            out["A"] = math.inf
         return out
+
+
+#: Largest controller gain a manifest may give (the paper's are 10 to 60; beyond this a loop overflows doubles).
+MAX_GAIN = 1e12
+#: Most runs a manifest may list (the paper's lab records six).
+MAX_RUNS = 100
 
 
 class ControllerSpec(BaseModel):
     """Gains of one run, in the units the manifest's ``feedback`` implies."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
-    Kp: float = Field(ge=0, allow_inf_nan=False)
-    Ki: float = Field(default=0.0, ge=0, allow_inf_nan=False)
-    Kd: float = Field(default=0.0, ge=0, allow_inf_nan=False)
+    Kp: float = Field(ge=0, le=MAX_GAIN, allow_inf_nan=False)
+    Ki: float = Field(default=0.0, ge=0, le=MAX_GAIN, allow_inf_nan=False)
+    Kd: float = Field(default=0.0, ge=0, le=MAX_GAIN, allow_inf_nan=False)
 
     @model_validator(mode="after")
     def _a_controller(self) -> ControllerSpec:
@@ -123,7 +141,16 @@ class Manifest(BaseModel):
     calibration: str | None = None
     flow_test: str | None = None
     friction: str | None = None
-    runs: list[RunSpec] = Field(default_factory=list)
+    runs: list[RunSpec] = Field(default_factory=list, max_length=MAX_RUNS)
+
+    @field_validator("station")
+    @classmethod
+    def _text(cls, v: str) -> str:
+        try:
+            v.encode("utf-8")
+        except UnicodeEncodeError:  # an unpaired surrogate (JSON's \ud800) that no report could write
+            raise ValueError("must be text that UTF-8 can write (it holds an unpaired surrogate)") from None
+        return v
 
     @field_validator("calibration", "flow_test", "friction")
     @classmethod

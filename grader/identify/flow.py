@@ -115,6 +115,10 @@ class FlowGainFit:
         if np.any(q < 0):
             raise IdentificationError("flow test: the flow meter reads magnitudes; negative readings found")
         i = self.Kamp * v
+        with np.errstate(over="ignore", invalid="ignore"):  # squares that overflow: no fit (LAPACK's SVD hung)
+            too_large = not (np.isfinite(i @ i) and np.isfinite(q @ q))
+        if too_large:
+            raise IdentificationError("flow test: the currents (Kamp × input) or the flows are too large to fit")
         null = int(np.argmin(q))
         side = np.sign(i - i[null])
         if not (np.any(side > 0) and np.any(side < 0)):
@@ -133,6 +137,8 @@ class FlowGainFit:
             method = "|Kq·(i−i0)| + leakage fitted over the linear region (saturation excluded)"
         dof = res.fun.size - res.x.size
         s2 = float(res.fun @ res.fun / max(dof, 1))
+        if not (np.isfinite(s2) and np.all(np.isfinite(res.jac))):
+            raise IdentificationError("flow test: the fit of the readings overflowed")
         cov = s2 * np.linalg.pinv(res.jac.T @ res.jac)
         se = np.sqrt(np.diag(cov))
         note = {"points_used": float(mask.sum()), "points": float(v.size), "Kamp [mA/V]": self.Kamp}

@@ -122,6 +122,10 @@ class OscillationFit:
         t, y = t[sel], y[sel]
         if t.size < 50:
             raise IdentificationError("instability run: fewer than 50 samples after the command starts")
+        with np.errstate(over="ignore", invalid="ignore"):  # squares that overflow: no least squares can start
+            too_large = not np.isfinite(y @ y)
+        if too_large:
+            raise IdentificationError("instability run: the readings are too large to fit an oscillation to")
         x = signal.detrend(y)
         f0 = _fft_peak(t, x)
         if f0 <= 0 or not np.isfinite(f0):

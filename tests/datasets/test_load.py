@@ -97,7 +97,56 @@ BAD_CASES = [
      ["manifest.json and manifest.yaml", "say different things (first in 'given')"]),
     ("a broken YAML beside the JSON", lambda d: (d / "manifest.yml").write_text("runs: [\n"),
      ["manifest.yml", "not valid YAML"]),
+    # an adversarial pass's tracebacks, hangs and misreadings (stop 32)
+    ("manifests that differ by a null field", lambda d: (_yaml_copy(d), _edit_manifest(d, foo=None)),
+     ["say different things (first in 'foo')"]),
+    ("nesting 1000 deep", lambda d: (d / "manifest.json").write_text('{"x": ' + "[" * 1000 + "]" * 1000 + "}"),
+     ["manifest.json", "not valid JSON: nested too deeply"]),
+    ("a 5000-digit number", lambda d: (d / "manifest.json").write_text(
+        (d / "manifest.json").read_text().replace('"0.001 s"', "9" * 5000, 1)),
+     ["manifest.json", "more than 4300 digits"]),
+    ("YAML aliases ten levels of ten", lambda d: _alias_bomb(d),
+     ["manifest.yaml", "holds more than 100000 values (its aliases expanded)"]),
+    ("an unpaired surrogate in station", lambda d: (d / "manifest.json").write_text(
+        (d / "manifest.json").read_text().replace('"station": "', '"station": "\\ud800', 1)),
+     ["field station", "unpaired surrogate"]),
+    ("Kp of 1e308", lambda d: _edit_manifest(d, runs=[{**r, "controller": {"Kp": 1e308}} for r in _runs(d)]),
+     ["runs.0.controller.Kp", "at most"]),
+    ("a bore of 1e300 in", lambda d: _edit_manifest(d, given={**_given(d), "bore": "1e300 in"}),
+     ["bore = '1e300 in' is outside the range a rig can have"]),
+    ("Kamp of 1e200 mA/V", lambda d: _edit_manifest(d, given={**_given(d), "Kamp": "1e200 mA/V"}),
+     ["Kamp = '1e200 mA/V' is outside the range"]),
+    ("101 runs", lambda d: _edit_manifest(d, runs=[{**_runs(d)[0], "name": f"r{k}"} for k in range(101)]),
+     ["field runs", "at most 100"]),
+    ("a cell that overflows in inches", lambda d: _set_cell(_replace_header(d, "calibration.csv", "position [km],voltage [V]")
+                                                            or d, "calibration.csv", 3, 0, "1e308"),
+     ["calibration.csv: row 3, column 'position': '1e308' is not a finite number once converted to in"]),
+    ("a number with an underscore", lambda d: _set_cell(d, "calibration.csv", 3, 0, "1_0"),
+     ["calibration.csv: row 3, column 'position': '1_0' is not a number"]),
+    ("a run file that is a folder", lambda d: ((d / "ramp_pi.csv").unlink(), (d / "ramp_pi.csv").mkdir()),
+     ["ramp_pi.csv: is a folder, not a CSV file"]),
 ]
+
+
+def _runs(ds: Path) -> list[dict]:
+    return json.loads((ds / "manifest.json").read_text())["runs"]
+
+
+def _set_cell(ds: Path, file: str, line: int, col: int, text: str) -> None:
+    """Cell ``col`` of line ``line`` (1-based) of ``file`` set to ``text``."""
+    lines = (ds / file).read_text().splitlines()
+    cells = lines[line - 1].split(",")
+    cells[col] = text
+    lines[line - 1] = ",".join(cells)
+    (ds / file).write_text("\n".join(lines) + "\n")
+
+
+def _alias_bomb(ds: Path) -> None:
+    """A manifest.yaml of 10 levels of 10 aliases (10¹⁰ values once expanded), and the JSON one removed."""
+    text = "x0: &a0 [" + ", ".join(["lol"] * 10) + "]\n"
+    text += "".join(f"x{i}: &a{i} [" + ", ".join([f"*a{i - 1}"] * 10) + "]\n" for i in range(1, 10))
+    (ds / "manifest.yaml").write_text(text)
+    (ds / "manifest.json").unlink()
 
 
 @pytest.mark.parametrize(("name", "breaker", "words"), BAD_CASES, ids=[c[0] for c in BAD_CASES])

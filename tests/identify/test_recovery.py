@@ -159,3 +159,16 @@ def test_oscillation_fit_finds_frequency_and_growth() -> None:
     assert fit.sigma_.value == pytest.approx(0.8, abs=0.05)
     lo, hi = fit.omega_.interval
     assert lo < 150 < hi or abs(fit.omega_.value - 150) < 0.05
+
+
+def test_readings_too_large_to_fit_are_refused_not_a_hang_or_a_traceback() -> None:
+    """Flow readings whose squares overflow hung in LAPACK's SVD; an instability run 1e160 in in size had no start
+    least_squares would take (an adversarial pass, stop 32)."""
+    v = np.arange(-10, 10.01, 0.5)
+    q = np.abs(0.04 * 5.0 * v) + 0.2
+    with pytest.raises(IdentificationError, match="flow test: the currents .* too large to fit"):
+        FlowGainFit(Kamp=5.0).fit(v * 1e200, q)
+    t = np.arange(0, 2, 0.001)
+    y = 0.2 + 0.01 * np.exp(0.8 * t) * np.sin(150 * t + 0.3)
+    with pytest.raises(IdentificationError, match="too large to fit an oscillation"):
+        OscillationFit().fit(t, 1e160 * y)
