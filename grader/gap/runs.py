@@ -28,7 +28,6 @@ from scipy.signal import savgol_coeffs
 from grader.datasets import Dataset, Run
 from grader.errors import DiagnosisError
 from grader.gap import glitches
-from grader.gap.glitches import mend
 from grader.model.params import Controller
 from grader.model.rig_setup import DAC_LIMIT
 
@@ -144,7 +143,7 @@ def _on_grid(raw: Run, T: float) -> tuple[Run, GapRun, list[str]]:
         raise _Unusable(f"{where}: only {max(run.t[-1] - start, 0) * 1e3:.0f} ms recorded after the command starts "
                         f"({run.t.size} rows in all); the diagnosis needs at least {MIN_DURATION * 1e3:.0f} ms after "
                         "it and 50 rows")
-    mended = mend(run.y, run.t, where, line=run.line)
+    mended = glitches.mend(run.y, run.t, where, line=run.line)
     if mended.flat:
         many = "s" if len(mended.rows) > 1 else ""
         but = f" apart from the reading{many} at row{many} {', '.join(map(str, mended.rows))}" if mended.rows else ""
@@ -201,10 +200,10 @@ def current_demand(runs: list[GapRun], k_fb: float, T: float, Kamp: float) -> fl
     return max(float(np.max(np.abs(controller_output(r, k_fb, T)))) for r in runs) * Kamp
 
 
-def implied_feedback_gain(run: GapRun, T: float, y: Array | None = None) -> float | None:
-    """The k_fb [V/in or 1] that makes the manifest's gains reproduce the recorded u from the reading ``y`` [in]
-    (default: the run's), or None without u."""
-    fit = _gain_fit(run, T, run.y if y is None else y)
+def implied_feedback_gain(run: GapRun, T: float) -> float | None:
+    """The k_fb [V/in or 1] that makes the manifest's gains reproduce the recorded u from the run's reading, or None
+    without u."""
+    fit = _gain_fit(run, T, run.y)
     return None if fit is None else fit[0]
 
 
