@@ -101,12 +101,15 @@ BAD_CASES = [
     ("manifests that differ by a null field", lambda d: (_yaml_copy(d), _edit_manifest(d, foo=None)),
      ["say different things (first in 'foo')"]),
     ("nesting 1000 deep", lambda d: (d / "manifest.json").write_text('{"x": ' + "[" * 1000 + "]" * 1000 + "}"),
-     ["manifest.json", "not valid JSON: nested too deeply"]),
+     ["manifest.json: JSON nested too deeply"]),
     ("a 5000-digit number", lambda d: (d / "manifest.json").write_text(
         (d / "manifest.json").read_text().replace('"0.001 s"', "9" * 5000, 1)),
-     ["manifest.json", "more than 4300 digits"]),
+     ["manifest.json", "a number is too long"]),
     ("YAML aliases ten levels of ten", lambda d: _alias_bomb(d),
-     ["manifest.yaml", "holds more than 100000 values (its aliases expanded)"]),
+     ["manifest.yaml", "YAML aliases (*name) are not allowed here"]),
+    ("a YAML manifest of 60000 values", lambda d: ((d / "manifest.yaml").write_text("x: [" + "1, " * 60_000 + "1]\n"),
+                                                  (d / "manifest.json").unlink()),
+     ["manifest.yaml: YAML document too large"]),
     ("an unpaired surrogate in station", lambda d: (d / "manifest.json").write_text(
         (d / "manifest.json").read_text().replace('"station": "', '"station": "\\ud800', 1)),
      ["field station", "unpaired surrogate"]),
