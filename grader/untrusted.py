@@ -1,7 +1,7 @@
 """JSON and YAML text from users (submissions, dataset manifests), parsed with bounds: no YAML aliases (a
-billion laughs expands ten levels of ten aliases into 10¹⁰ values), a bounded number of YAML events, and
-nesting or numbers Python cannot read refused. Every refusal is a :class:`~grader.errors.GraderError` whose
-one-line message names the file; callers re-raise it as their own error."""
+billion laughs expands ten levels of ten aliases into 10¹⁰ values), at most :data:`MAX_YAML_EVENTS` YAML
+events and :data:`MAX_DEPTH` levels, and nesting or numbers Python cannot read refused. Every refusal is a
+:class:`~grader.errors.GraderError` whose one-line message names the file; callers re-raise it as their own."""
 
 from __future__ import annotations
 
@@ -14,6 +14,8 @@ from grader.errors import GraderError
 
 #: Most YAML events (scalars, starts and ends of mappings and sequences) a document may hold.
 MAX_YAML_EVENTS = 50_000
+#: Deepest nesting of YAML mappings and sequences (a submission or manifest needs four).
+MAX_DEPTH = 64
 
 
 def parse(name: str, text: str, *, as_json: bool, max_yaml_events: int = MAX_YAML_EVENTS) -> Any:
@@ -22,11 +24,15 @@ def parse(name: str, text: str, *, as_json: bool, max_yaml_events: int = MAX_YAM
     try:
         if as_json:
             return json.loads(text)
+        depth = 0
         for n, event in enumerate(yaml.parse(text, Loader=yaml.SafeLoader)):
             if isinstance(event, yaml.AliasEvent):
                 raise GraderError(f"{name}: YAML aliases (*name) are not allowed here")
             if n > max_yaml_events:
                 raise GraderError(f"{name}: YAML document too large")
+            depth += isinstance(event, yaml.CollectionStartEvent) - isinstance(event, yaml.CollectionEndEvent)
+            if depth > MAX_DEPTH:  # the scanner's cost grows with the depth: 200 kB of '[' took minutes
+                raise GraderError(f"{name}: YAML nested too deeply")
         return yaml.safe_load(text)
     except json.JSONDecodeError as exc:
         raise GraderError(f"{name}: not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}") from None
