@@ -25,6 +25,7 @@ The CLI prints that message and exits non-zero; no traceback reaches a user.
 
 from __future__ import annotations
 
+import sys
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # pydantic is imported by the modules that validate, not by the CLI's start-up
@@ -111,6 +112,8 @@ _PLAIN = {
 
 
 def _kind(value: object) -> str:
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > sys.float_info.max:
+        return "a number beyond a double's range (1.8e308)"
     return {list: "a list", dict: "a table", str: "text", bool: "true/false", type(None): "nothing"}.get(
         type(value), "a number" if isinstance(value, (int, float)) else type(value).__name__)
 

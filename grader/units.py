@@ -93,6 +93,8 @@ def parse_quantity(text: str | float | int, *, where: str = "quantity", default_
     text = _guard(text, where)
     try:
         q = ureg.parse_expression(text.replace("^", "**"))
+    except ZeroDivisionError:
+        raise UnitError(f"{where}: {text!r} divides by zero") from None
     except Exception:  # pint's parser raises many types (even AssertionError) on hostile text
         raise UnitError(f"{where}: cannot read {text!r} as a number with a unit{_did_you_mean(text)}") from None
     if not isinstance(q, pint.Quantity):
@@ -109,6 +111,8 @@ def parse_unit(text: str, *, where: str = "unit") -> pint.Unit:
     text = _guard(text, where)
     try:
         q = ureg.parse_expression(text.replace("^", "**"))
+    except ZeroDivisionError:
+        raise UnitError(f"{where}: {text!r} divides by zero") from None
     except Exception:  # as above
         raise UnitError(f"{where}: unknown unit {text!r}{_did_you_mean(text)}") from None
     if isinstance(q, pint.Quantity):

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
 from grader.errors import ModelError
 from grader.model.params import G_IN_PER_S2, Controller, mass_from_weight, piston_area
@@ -104,6 +105,13 @@ class ControllerSpec(BaseModel):
     Kp: float = Field(ge=0, le=MAX_GAIN, allow_inf_nan=False)
     Ki: float = Field(default=0.0, ge=0, le=MAX_GAIN, allow_inf_nan=False)
     Kd: float = Field(default=0.0, ge=0, le=MAX_GAIN, allow_inf_nan=False)
+
+    @field_validator("Kp", "Ki", "Kd", mode="before")
+    @classmethod
+    def _not_true_or_false(cls, v: object) -> object:
+        if isinstance(v, bool):  # pydantic would read true as 1
+            raise PydanticCustomError("float_type", "Input should be a valid number")
+        return v
 
     @model_validator(mode="after")
     def _a_controller(self) -> ControllerSpec:

@@ -38,6 +38,7 @@ def test_parse_and_convert(text: str | int, unit: str, expected: float) -> None:
         ("0.0385 in3/s/mA", "did you mean in\\^3/s/mA\\?$"),
         ("2 psii", "did you mean psi\\?$"),
         ("nan m", "finite"),
+        ("1 in/0", "^answers.Kq: '1 in/0' divides by zero$"),
     ],
 )
 def test_hostile_or_bad_quantities_raise_unit_error(text: str, words: str) -> None:
@@ -54,6 +55,8 @@ def test_parse_unit_rejects_quantities() -> None:
     assert parse_unit("L/min") == ureg.Unit("L/min")
     with pytest.raises(UnitError, match="quantity, not a unit"):
         parse_unit("3 m")
+    with pytest.raises(UnitError, match="^unit: 'in/0' divides by zero$"):
+        parse_unit("in/0")
 
 
 @settings(max_examples=200, deadline=None)

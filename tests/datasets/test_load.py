@@ -131,6 +131,17 @@ BAD_CASES = [
      ["calibration.csv: row 3, column 'position': '1_0' is not a number"]),
     ("a run file that is a folder", lambda d: ((d / "ramp_pi.csv").unlink(), (d / "ramp_pi.csv").mkdir()),
      ["ramp_pi.csv: is a folder, not a CSV file"]),
+    # read as what they are, not as 1, 90 or "a number" (stop 33)
+    ("Kp: true", lambda d: _edit_manifest(d, runs=[{**r, "controller": {"Kp": True}} for r in _runs(d)]),
+     ["field runs.0.controller.Kp should be a number, not true/false"]),
+    ("a 400-digit Kp", lambda d: (d / "manifest.json").write_text(json.dumps(
+        {**json.loads((d / "manifest.json").read_text()),
+         "runs": [{**r, "controller": {"Kp": 10**400}} for r in _runs(d)]})),
+     ["field runs.0.controller.Kp should be a number, not a number beyond a double's range"]),
+    ("a YAML Kp of 1:30", lambda d: ((d / "manifest.yaml").write_text(
+        yaml.safe_dump({**json.loads((d / "manifest.json").read_text()), "runs": [{**_runs(d)[0], "controller": {"Kp": "@"}}]})
+        .replace("Kp: '@'", "Kp: 1:30")), (d / "manifest.json").unlink()),
+     ["manifest.yaml: field runs.0.controller.Kp should be a number, not text"]),
 ]
 
 

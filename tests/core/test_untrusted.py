@@ -1,0 +1,79 @@
+"""The bounded JSON/YAML reader of users' text (manifests, submissions): YAML 1.2's core schema for plain
+scalars, not PyYAML's YAML 1.1 (base-60 times, octal, yes/no booleans)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from grader.errors import GraderError
+from grader.untrusted import parse
+
+SCALARS = [
+    ("1:30", "1:30"),  # YAML 1.1: 90 (base 60)
+    ("010", 10),  # YAML 1.1: 8 (octal)
+    ("007", 7),
+    ("0o17", 15),
+    ("0x1A", 26),
+    ("1_000", "1_000"),  # YAML 1.1: 1000
+    ("yes", "yes"),
+    ("no", "no"),
+    ("on", "on"),
+    ("Off", "Off"),
+    ("y", "y"),
+    ("true", True),
+    ("False", False),
+    ("1e5", 100000.0),  # PyYAML: text (its floats need a dot)
+    ("-.5", -0.5),
+    ("3.", 3.0),
+    ("+3.5", 3.5),
+    ("-12", -12),
+    ("1.5e-3", 0.0015),
+    ("~", None),
+    ("null", None),
+    ("'010'", "010"),
+    ("0b11", "0b11"),
+    ("-0x10", "-0x10"),
+    ("!!int 1_000", 1000),
+]
+
+
+@pytest.mark.parametrize(("text", "value"), SCALARS, ids=[s[0] for s in SCALARS])
+def test_plain_scalars_read_as_yaml_1_2_core(text: str, value: object) -> None:
+    got = parse("m.yaml", f"x: {text}\n", as_json=False)["x"]
+    assert got == value and type(got) is type(value)
+
+
+def test_infinity_and_nan_are_floats() -> None:
+    got = parse("m.yaml", "a: .inf\nb: -.Inf\nc: .nan\n", as_json=False)
+    assert got["a"] == math.inf and got["b"] == -math.inf and math.isnan(got["c"])
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ("x: !!int 1:30", "m.yaml: not valid YAML: '1:30' is not an integer"),
+    ("x: !!float abc", "m.yaml: not valid YAML: 'abc' is not a number"),
+    ("x: " + "9" * 5000, "m.yaml: not valid YAML: a number is too long"),
+])
+def test_scalars_that_are_no_number_are_one_line_errors(text: str, words: str) -> None:
+    with pytest.raises(GraderError, match="^" + words.replace("(", r"\(")):
+        parse("m.yaml", text, as_json=False)
+
+
+#: Text YAML may hold as it is (its printable characters: no control characters or DEL).
+TEXT = st.text(st.characters(categories=("L", "N", "P", "S", "Zs")), max_size=20)
+JSON_VALUES = st.recursive(
+    st.none() | st.booleans() | st.integers(-10**30, 10**30) | st.floats(allow_nan=False, allow_infinity=False) | TEXT,
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(TEXT, inner, max_size=4),
+    max_leaves=20)
+
+
+@settings(max_examples=200, deadline=None)
+@given(JSON_VALUES)
+def test_json_text_reads_the_same_as_yaml(value: object) -> None:
+    """JSON is YAML 1.2: a submission or manifest saved as JSON means the same read as YAML."""
+    text = json.dumps(value, ensure_ascii=False)
+    assert parse("m.yaml", text, as_json=False) == parse("m.json", text, as_json=True) == value
