@@ -263,6 +263,34 @@ def test_arbitrary_header_never_crashes(tmp_path_factory: pytest.TempPathFactory
         assert "c.csv" in str(exc)
 
 
+CELL = st.one_of(
+    st.floats(allow_nan=False, allow_infinity=False, width=64).map(repr),
+    st.floats(-1e6, 1e6).map(lambda v: f" {v:.4g}\t"),
+    st.integers(-10**6, 10**6).map(str),
+    st.sampled_from(["1e400", "nan", "-inf", "1_0", "abc", "", "١٢", "0x10", " "]),
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.tuples(CELL, CELL, CELL), min_size=1, max_size=30), st.booleans())
+def test_whole_columns_read_as_cell_by_cell_does(rows: list[tuple[str, str, str]], ragged: bool) -> None:
+    """The column-at-once read (numpy) gives the arrays, or the error naming the first faulty cell, of the
+    cell-by-cell read; in mm, so a cell can also overflow once converted."""
+    from grader.datasets.csvio import _convert, _convert_cells
+
+    header = [("position", 1 / 25.4, "in"), ("note", float("nan"), ""), ("voltage", 1.0, "V")]
+    body = [(k + 2, list(r) if not (ragged and k == len(rows) // 2) else list(r[:2])) for k, r in enumerate(rows)]
+    path = Path("c.csv")
+
+    def outcome(read):  # noqa: ANN001, ANN202
+        try:
+            return {k: v.tobytes() for k, v in read(path, header, body).items()}
+        except DatasetError as exc:
+            return str(exc)
+
+    assert outcome(_convert) == outcome(_convert_cells)
+
+
 def test_symlinked_files_are_refused_and_never_echoed(ds: Path) -> None:
     secret = ds.parent / "secret.txt"
     secret.write_text("root:x:0:0:root:/root:/bin/bash\n")
