@@ -76,7 +76,7 @@ def parse(name: str, text: str, *, as_json: bool, max_yaml_events: int = MAX_YAM
                 raise GraderError(f"{name}: YAML nested too deeply")
         return yaml.load(text, Loader=CoreLoader)  # a SafeLoader: no Python objects
     except json.JSONDecodeError as exc:
-        raise GraderError(f"{name}: not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}") from None
+        raise GraderError(f"{name}: not valid JSON: {_json_fault(exc)}") from None
     except yaml.YAMLError as exc:
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise GraderError(f"{name}: not valid YAML: {first}") from None
@@ -84,3 +84,13 @@ def parse(name: str, text: str, *, as_json: bool, max_yaml_events: int = MAX_YAM
         raise GraderError(f"{name}: {kind} nested too deeply") from None
     except ValueError:  # an integer beyond Python's int-digit limit
         raise GraderError(f"{name}: not valid {kind}: a number is too long (write it with fewer digits)") from None
+
+
+def _json_fault(exc: json.JSONDecodeError) -> str:
+    """The decoder's message and where, or what a person wrote there: a comma after the last item (which YAML,
+    Python and JavaScript allow), named where the comma is."""
+    comma = len(exc.doc[:exc.pos].rstrip()) - 1
+    if exc.doc[exc.pos:exc.pos + 1] in ("}", "]") and comma >= 0 and exc.doc[comma] == ",":
+        line, column = exc.doc.count("\n", 0, comma) + 1, comma - exc.doc.rfind("\n", 0, comma)
+        return f"a comma after the last item before '{exc.doc[exc.pos]}' at line {line}, column {column} (JSON allows none)"
+    return f"{exc.msg} at line {exc.lineno}, column {exc.colno}"

@@ -63,6 +63,19 @@ def test_scalars_that_are_no_number_are_one_line_errors(text: str, words: str) -
         parse("m.yaml", text, as_json=False)
 
 
+@pytest.mark.parametrize(("text", "message"), [
+    ('{"Kp": 10,\n}', "m.json: not valid JSON: a comma after the last item before '}' at line 1, column 10 (JSON allows none)"),
+    ('{"runs": [1, 2,],\n "x": 1}', "m.json: not valid JSON: a comma after the last item before ']' at line 1, column 15 "
+                                    "(JSON allows none)"),
+    ('{"Kp" 10}', "m.json: not valid JSON: Expecting ':' delimiter at line 1, column 7"),
+    ('[,]', "m.json: not valid JSON: Expecting value at line 1, column 2"),
+])
+def test_json_faults_are_named_where_they_are(text: str, message: str) -> None:
+    with pytest.raises(GraderError) as exc:
+        parse("m.json", text, as_json=True)
+    assert str(exc.value) == message
+
+
 #: Text YAML may hold as it is (its printable characters: no control characters or DEL).
 TEXT = st.text(st.characters(categories=("L", "N", "P", "S", "Zs")), max_size=20)
 JSON_VALUES = st.recursive(
