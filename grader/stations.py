@@ -15,6 +15,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
 
 from grader.datasets.schema import Given
+from grader import untrusted
 from grader.errors import DatasetError, GraderError, SimulationError, validation_message
 from grader.model.effects import EffectSet
 from grader.model.params import RigParams
@@ -98,7 +99,7 @@ def load_station(name_or_path: str | Path) -> Station:
     if not path.is_file():
         raise DatasetError(f"station {name_or_path!s}: no such station file ({path})")
     try:
-        raw = yaml.safe_load(path.read_text(encoding="utf-8"))
+        raw = untrusted.load_yaml(path.read_text(encoding="utf-8"))
         station = Station.model_validate(raw)
         station.params()
     except yaml.YAMLError as exc:

@@ -59,6 +59,12 @@ CoreLoader.add_constructor(_INT, CoreLoader.construct_yaml_int)
 CoreLoader.add_constructor(_FLOAT, CoreLoader.construct_yaml_float)
 
 
+def load_yaml(text: str) -> Any:
+    """``text``'s YAML value read as :class:`CoreLoader` reads it, without :func:`parse`'s bounds: for the files
+    instructors and lab staff write for themselves (rubrics, stations, survey mappings), so that a scale labelled
+    ``No … Yes`` is text there too."""
+    return yaml.load(text, Loader=CoreLoader)  # a SafeLoader: no Python objects
+
 def parse(name: str, text: str, *, as_json: bool, max_yaml_events: int = MAX_YAML_EVENTS) -> Any:
     """The value that ``text`` (from file ``name``) holds, as JSON or as YAML."""
     kind = "JSON" if as_json else "YAML"

@@ -24,6 +24,7 @@ from pydantic import (
     model_validator,
 )
 
+from grader import untrusted
 from grader.assess.likert import Scale
 from grader.errors import AssessmentError
 
@@ -181,7 +182,7 @@ def load_mapping(path: Path | None = None) -> SurveyMapping:
         except (OSError, UnicodeDecodeError) as exc:
             raise AssessmentError(f"{name}: cannot read the mapping file ({exc})") from exc
     try:
-        data = yaml.safe_load(text)
+        data = untrusted.load_yaml(text)
     except yaml.YAMLError as exc:
         raise AssessmentError(f"{name}: not valid YAML ({' '.join(str(exc).split())})") from exc
     try:

@@ -16,6 +16,7 @@ from typing import Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from grader import untrusted
 from grader.errors import GraderError, RubricError, validation_message
 from grader.grading.ecf import RECOMPUTE
 from grader.grading.items import ITEMS
@@ -204,7 +205,7 @@ def load_rubric(path: str | Path) -> Rubric:
     if not path.is_file():
         raise RubricError(f"{path}: rubric file not found")
     try:
-        raw = yaml.safe_load(path.read_text(encoding="utf-8"))
+        raw = untrusted.load_yaml(path.read_text(encoding="utf-8"))
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
         raise RubricError(f"{path.name}: not valid YAML ({str(exc).splitlines()[0]})") from None
     if not isinstance(raw, dict):

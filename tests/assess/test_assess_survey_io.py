@@ -175,6 +175,17 @@ def test_bad_mapping_files(tmp_path: Path, yaml_text: str, expected: str) -> Non
     assert str(info.value).startswith("map.yaml: ") and expected in str(info.value)
 
 
+def test_a_scale_labelled_no_to_yes_is_text(tmp_path: Path) -> None:
+    """YAML 1.1 read No, Yes, On and Off as booleans: the mapping was refused ("Input should be a valid string")."""
+    path = tmp_path / "map.yaml"
+    path.write_text("scale: {labels: [No, Rather no, Unsure, Rather yes, Yes], synonyms: {Y: 5, N: 1}, missing: [Off]}\n"
+                    "statements: [{id: s, label: S, text: t}]\nlabs: [{id: x, name: X}, {id: y, name: Y}]\n", encoding="utf-8")
+    scale = load_mapping(path).scale
+    assert scale.labels == ("No", "Rather no", "Unsure", "Rather yes", "Yes") and scale.missing == ("Off",)
+    assert scale.synonyms == {"Y": 5, "N": 1}
+    assert [scale.parse(a) for a in ("yes", "No", "Y", "off")] == [5, 1, 5, None]
+
+
 def test_mapping_without_columns_for_the_form(tmp_path: Path) -> None:
     path = tmp_path / "map.yaml"
     path.write_text(
