@@ -4,8 +4,8 @@ events and :data:`MAX_DEPTH` levels, and nesting or numbers Python cannot read r
 :class:`~grader.errors.GraderError` whose one-line message names the file; callers re-raise it as their own.
 
 Plain YAML scalars are read as YAML 1.2's core schema reads them (:class:`CoreLoader`), not as PyYAML's YAML 1.1:
-``1:30`` is text, not 90 (base 60); ``010`` is 10, not 8 (octal); ``1_000``, ``yes``, ``no``, ``on`` and ``off``
-are text; ``1e5`` is a number."""
+``1:30`` is text, not 90 (base 60); ``010`` is 10, not 8 (octal); ``1_000``, ``yes``, ``no``, ``on``, ``off``,
+``2024-05-01`` and ``=`` are text; ``1e5`` is a number."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ MAX_YAML_EVENTS = 50_000
 #: Deepest nesting of YAML mappings and sequences (a submission or manifest needs four).
 MAX_DEPTH = 64
 
-_BOOL, _INT, _FLOAT = (f"tag:yaml.org,2002:{t}" for t in ("bool", "int", "float"))
+_BOOL, _INT, _FLOAT, _NULL, _MERGE = (f"tag:yaml.org,2002:{t}" for t in ("bool", "int", "float", "null", "merge"))
 
 
 class CoreLoader(yaml.SafeLoader):
@@ -47,8 +47,8 @@ class CoreLoader(yaml.SafeLoader):
                                                     node.start_mark) from None
 
 
-CoreLoader.yaml_implicit_resolvers = {
-    first: [(tag, rx) for tag, rx in resolvers if tag not in (_BOOL, _INT, _FLOAT)]
+CoreLoader.yaml_implicit_resolvers = {  # null and merge (<<) kept; YAML 1.1's timestamps and = are text in 1.2
+    first: [(tag, rx) for tag, rx in resolvers if tag in (_NULL, _MERGE)]
     for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
 CoreLoader.add_implicit_resolver(_BOOL, re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF"))
 CoreLoader.add_implicit_resolver(_INT, re.compile(r"^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$"), list("-+0123456789"))
