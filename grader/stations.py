@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 from grader.datasets.schema import Given
 from grader import untrusted
@@ -57,6 +57,14 @@ class Station(BaseModel):
     truth: dict[str, str]
     noise: dict[str, str] = {}
     effects: dict[str, dict[str, str]] = {}
+
+    @field_validator("truth", "noise", "effects", mode="before")
+    @classmethod
+    def _numbers_as_text(cls, v: object) -> object:
+        """A bare number (``4e-4``) as the text it is read from, in the field's unit, as in ``given``."""
+        if isinstance(v, dict):
+            return {k: cls._numbers_as_text(x) for k, x in v.items()}
+        return str(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v
 
     def truth_values(self) -> dict[str, float]:
         """Truth in internal units; missing optional entries default to 0 (Kq, Kpot, β/Vt, Kce required)."""

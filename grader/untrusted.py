@@ -10,6 +10,7 @@ Plain YAML scalars are read as YAML 1.2's core schema reads them (:class:`CoreLo
 from __future__ import annotations
 
 import json
+import math
 import re
 from typing import Any
 
@@ -23,38 +24,51 @@ MAX_YAML_EVENTS = 50_000
 MAX_DEPTH = 64
 
 _BOOL, _INT, _FLOAT, _NULL, _MERGE = (f"tag:yaml.org,2002:{t}" for t in ("bool", "int", "float", "null", "merge"))
+#: YAML 1.2 core schema: integers, finite floats, and infinities and NaN.
+_INT_RE = re.compile(r"[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+")
+_FLOAT_RE = re.compile(r"[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?")
+_SPECIAL_RE = re.compile(r"([-+]?)\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN)")
+#: What PyYAML's constructors raise on text their (explicit) tag cannot hold: '!!float' on nothing, '!!bool maybe'.
+_UNREADABLE = (ValueError, IndexError, KeyError, AttributeError, TypeError, OverflowError)
+_WHAT = {"int": "an integer", "float": "a number", "bool": "true or false", "timestamp": "a date"}
 
 
 class CoreLoader(yaml.SafeLoader):
-    """PyYAML's safe loader with YAML 1.2's core schema for booleans, integers and floats."""
+    """PyYAML's safe loader with YAML 1.2's core schema for booleans, integers and floats. A value its tag cannot
+    hold (``!!int 1:30``, ``!!float ''``) is a :class:`yaml.YAMLError` naming it."""
+
+    def construct_object(self, node: yaml.Node, deep: bool = False) -> Any:
+        try:
+            return super().construct_object(node, deep=deep)
+        except _UNREADABLE as exc:
+            if isinstance(exc, ValueError) and "digits" in str(exc):  # beyond Python's int-digit limit
+                raise
+            text, tag = node.value if isinstance(node, yaml.ScalarNode) else "…", node.tag.rsplit(":", 1)[-1]
+            raise yaml.constructor.ConstructorError(None, None, f"{text[:40]!r} is not {_WHAT.get(tag, 'a ' + tag)}",
+                                                    node.start_mark) from None
 
     def construct_yaml_int(self, node: yaml.ScalarNode) -> int:
         text = self.construct_scalar(node)
-        digits = text.lstrip("+-")
-        try:
-            value = int(digits, 0) if digits[:2] in ("0o", "0x") else int(digits, 10)
-        except ValueError:
-            if digits.isdigit():  # beyond Python's int-digit limit
-                raise
-            raise yaml.constructor.ConstructorError(None, None, f"{text[:40]!r} is not an integer", node.start_mark) from None
-        return -value if text.startswith("-") else value
+        if not _INT_RE.fullmatch(text):
+            raise ValueError(text)
+        return int(text, 0) if text[:2] in ("0o", "0x") else int(text, 10)
 
     def construct_yaml_float(self, node: yaml.ScalarNode) -> float:
-        try:
-            return super().construct_yaml_float(node)
-        except ValueError:  # an explicit !!float on text
-            raise yaml.constructor.ConstructorError(None, None, f"{self.construct_scalar(node)[:40]!r} is not a number",
-                                                    node.start_mark) from None
+        text = self.construct_scalar(node)
+        if m := _SPECIAL_RE.fullmatch(text):
+            return float(f"{m.group(1)}inf") if m.group(1) is not None else math.nan
+        if not _FLOAT_RE.fullmatch(text):
+            raise ValueError(text)
+        return float(text)
 
 
 CoreLoader.yaml_implicit_resolvers = {  # null and merge (<<) kept; YAML 1.1's timestamps and = are text in 1.2
     first: [(tag, rx) for tag, rx in resolvers if tag in (_NULL, _MERGE)]
     for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
 CoreLoader.add_implicit_resolver(_BOOL, re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF"))
-CoreLoader.add_implicit_resolver(_INT, re.compile(r"^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$"), list("-+0123456789"))
-CoreLoader.add_implicit_resolver(
-    _FLOAT, re.compile(r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$"),
-    list("-+.0123456789"))
+CoreLoader.add_implicit_resolver(_INT, re.compile(f"^(?:{_INT_RE.pattern})$"), list("-+0123456789"))
+CoreLoader.add_implicit_resolver(_FLOAT, re.compile(f"^(?:{_FLOAT_RE.pattern}|{_SPECIAL_RE.pattern})$"),
+                                 list("-+.0123456789"))
 CoreLoader.add_constructor(_INT, CoreLoader.construct_yaml_int)
 CoreLoader.add_constructor(_FLOAT, CoreLoader.construct_yaml_float)
 
@@ -64,6 +78,7 @@ def load_yaml(text: str) -> Any:
     instructors and lab staff write for themselves (rubrics, stations, survey mappings), so that a scale labelled
     ``No … Yes`` is text there too."""
     return yaml.load(text, Loader=CoreLoader)  # a SafeLoader: no Python objects
+
 
 def parse(name: str, text: str, *, as_json: bool, max_yaml_events: int = MAX_YAML_EVENTS) -> Any:
     """The value that ``text`` (from file ``name``) holds, as JSON or as YAML."""
@@ -94,9 +109,21 @@ def parse(name: str, text: str, *, as_json: bool, max_yaml_events: int = MAX_YAM
 
 def _json_fault(exc: json.JSONDecodeError) -> str:
     """The decoder's message and where, or what a person wrote there: a comma after the last item (which YAML,
-    Python and JavaScript allow), named where the comma is."""
-    comma = len(exc.doc[:exc.pos].rstrip()) - 1
-    if exc.doc[exc.pos:exc.pos + 1] in ("}", "]") and comma >= 0 and exc.doc[comma] == ",":
-        line, column = exc.doc.count("\n", 0, comma) + 1, comma - exc.doc.rfind("\n", 0, comma)
-        return f"a comma after the last item before '{exc.doc[exc.pos]}' at line {line}, column {column} (JSON allows none)"
+    Python and JavaScript allow), named where the comma is, when the text without it gets past that point."""
+    doc, comma = exc.doc, len(exc.doc[:exc.pos].rstrip()) - 1
+    closes = doc[exc.pos:exc.pos + 1] in ("}", "]") and comma >= 0 and doc[comma] == ","
+    if closes and _parses_past(doc[:comma] + doc[comma + 1:], comma):
+        line, column = doc.count("\n", 0, comma) + 1, comma - doc.rfind("\n", 0, comma)
+        return f"a comma after the last item before '{doc[exc.pos]}' at line {line}, column {column} (JSON allows none)"
     return f"{exc.msg} at line {exc.lineno}, column {exc.colno}"
+
+
+def _parses_past(text: str, pos: int) -> bool:
+    """Whether JSON ``text`` parses, or fails only after ``pos`` (a bracket that does not match fails there)."""
+    try:
+        json.loads(text)
+    except json.JSONDecodeError as exc:
+        return exc.pos > pos
+    except (RecursionError, ValueError):
+        return False
+    return True

@@ -38,7 +38,9 @@ SCALARS = [
     ("'010'", "010"),
     ("0b11", "0b11"),
     ("-0x10", "-0x10"),
-    ("!!int 1_000", 1000),
+    ("!!int 0x1F", 31),
+    ("!!float 10", 10.0),
+    (".e5", ".e5"),
     ("2024-05-01", "2024-05-01"),  # YAML 1.1: a date
     ("2001-12-14t21:59:43.10-05:00", "2001-12-14t21:59:43.10-05:00"),
     ("=", "="),  # PyYAML: a tag it cannot construct
@@ -60,6 +62,13 @@ def test_infinity_and_nan_are_floats() -> None:
     ("x: !!int 1:30", "m.yaml: not valid YAML: '1:30' is not an integer"),
     ("x: !!float abc", "m.yaml: not valid YAML: 'abc' is not a number"),
     ("x: " + "9" * 5000, "m.yaml: not valid YAML: a number is too long"),
+    ("x: !!int 1_000", "m.yaml: not valid YAML: '1_000' is not an integer"),  # int() would read 1000
+    ("x: !!int --5", "m.yaml: not valid YAML: '--5' is not an integer"),
+    ("x: !!float 1:30", "m.yaml: not valid YAML: '1:30' is not a number"),  # PyYAML: 90.0
+    # PyYAML's own constructors raised IndexError, KeyError and AttributeError on these: tracebacks
+    ("x: !!float ''", "m.yaml: not valid YAML: '' is not a number"),
+    ("x: !!bool maybe", "m.yaml: not valid YAML: 'maybe' is not true or false"),
+    ("x: !!timestamp x", "m.yaml: not valid YAML: 'x' is not a date"),
 ])
 def test_scalars_that_are_no_number_are_one_line_errors(text: str, words: str) -> None:
     with pytest.raises(GraderError, match="^" + words.replace("(", r"\(")):
@@ -67,11 +76,13 @@ def test_scalars_that_are_no_number_are_one_line_errors(text: str, words: str) -
 
 
 @pytest.mark.parametrize(("text", "message"), [
-    ('{"Kp": 10,\n}', "m.json: not valid JSON: a comma after the last item before '}' at line 1, column 10 (JSON allows none)"),
-    ('{"runs": [1, 2,],\n "x": 1}', "m.json: not valid JSON: a comma after the last item before ']' at line 1, column 15 "
-                                    "(JSON allows none)"),
+    ('{"Kp": 10,\n}',
+     "m.json: not valid JSON: a comma after the last item before '}' at line 1, column 10 (JSON allows none)"),
+    ('{"runs": [1, 2,],\n "x": 1}',
+     "m.json: not valid JSON: a comma after the last item before ']' at line 1, column 15 (JSON allows none)"),
     ('{"Kp" 10}', "m.json: not valid JSON: Expecting ':' delimiter at line 1, column 7"),
     ('[,]', "m.json: not valid JSON: Expecting value at line 1, column 2"),
+    ('{"a": [1,}', "m.json: not valid JSON: Expecting value at line 1, column 10"),  # a bracket that does not match
 ])
 def test_json_faults_are_named_where_they_are(text: str, message: str) -> None:
     with pytest.raises(GraderError) as exc:
