@@ -31,6 +31,7 @@ _SPECIAL_RE = re.compile(r"([-+]?)\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN)")
 #: What PyYAML's constructors raise on text their (explicit) tag cannot hold: '!!float' on nothing, '!!bool maybe'.
 _UNREADABLE = (ValueError, IndexError, KeyError, AttributeError, TypeError, OverflowError)
 _WHAT = {"int": "an integer", "float": "a number", "bool": "true or false", "timestamp": "a date"}
+_TOO_LONG = "a number is too long (write it with fewer digits)"
 
 
 class CoreLoader(yaml.SafeLoader):
@@ -41,11 +42,10 @@ class CoreLoader(yaml.SafeLoader):
         try:
             return super().construct_object(node, deep=deep)
         except _UNREADABLE as exc:
-            if isinstance(exc, ValueError) and "digits" in str(exc):  # beyond Python's int-digit limit
-                raise
             text, tag = node.value if isinstance(node, yaml.ScalarNode) else "…", node.tag.rsplit(":", 1)[-1]
-            raise yaml.constructor.ConstructorError(None, None, f"{text[:40]!r} is not {_WHAT.get(tag, 'a ' + tag)}",
-                                                    node.start_mark) from None
+            what = (_TOO_LONG if isinstance(exc, ValueError) and "digits" in str(exc)  # Python's int-digit limit
+                    else f"{text[:40]!r} is not {_WHAT.get(tag, 'a ' + tag)}")
+            raise yaml.constructor.ConstructorError(None, None, what, node.start_mark) from None
 
     def construct_yaml_int(self, node: yaml.ScalarNode) -> int:
         text = self.construct_scalar(node)
@@ -103,8 +103,8 @@ def parse(name: str, text: str, *, as_json: bool, max_yaml_events: int = MAX_YAM
         raise GraderError(f"{name}: not valid YAML: {first}") from None
     except RecursionError:
         raise GraderError(f"{name}: {kind} nested too deeply") from None
-    except ValueError:  # an integer beyond Python's int-digit limit
-        raise GraderError(f"{name}: not valid {kind}: a number is too long (write it with fewer digits)") from None
+    except ValueError:  # JSON: an integer beyond Python's int-digit limit (YAML says so as a YAMLError)
+        raise GraderError(f"{name}: not valid {kind}: {_TOO_LONG}") from None
 
 
 def _json_fault(exc: json.JSONDecodeError) -> str:

@@ -7,11 +7,12 @@ import json
 import math
 
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from grader.errors import GraderError
-from grader.untrusted import parse
+from grader.untrusted import load_yaml, parse
 
 SCALARS = [
     ("1:30", "1:30"),  # YAML 1.1: 90 (base 60)
@@ -104,3 +105,11 @@ def test_json_text_reads_the_same_as_yaml(value: object) -> None:
     """JSON is YAML 1.2: a submission or manifest saved as JSON means the same read as YAML."""
     text = json.dumps(value, ensure_ascii=False)
     assert parse("m.yaml", text, as_json=False) == parse("m.json", text, as_json=True) == value
+
+
+@pytest.mark.parametrize("text", ["x: " + "9" * 5000, "x: !!bool maybe", "x: !!float ''"])
+def test_the_files_instructors_write_get_a_yaml_error_not_a_traceback(text: str) -> None:
+    """Rubrics, stations and survey mappings (:func:`load_yaml`) turn YAML errors into their own one-line errors;
+    a ValueError (Python's int-digit limit) or KeyError escaped them as a traceback."""
+    with pytest.raises(yaml.YAMLError):
+        load_yaml(text)
