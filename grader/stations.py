@@ -14,8 +14,8 @@ from typing import Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
-from grader.datasets.schema import Given
 from grader import untrusted
+from grader.datasets.schema import Given
 from grader.errors import DatasetError, GraderError, SimulationError, validation_message
 from grader.model.effects import EffectSet
 from grader.model.params import RigParams
