@@ -15,7 +15,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 from grader import untrusted
-from grader.datasets.schema import Given
+from grader.datasets.schema import Given, number_as_text
 from grader.errors import DatasetError, GraderError, SimulationError, validation_message
 from grader.model.effects import EffectSet
 from grader.model.params import RigParams
@@ -61,10 +61,8 @@ class Station(BaseModel):
     @field_validator("truth", "noise", "effects", mode="before")
     @classmethod
     def _numbers_as_text(cls, v: object) -> object:
-        """A bare number (``4e-4``) as the text it is read from, in the field's unit, as in ``given``."""
-        if isinstance(v, dict):
-            return {k: cls._numbers_as_text(x) for k, x in v.items()}
-        return str(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v
+        """Bare numbers (``4e-4``) as text in the field's unit, as in ``given``."""
+        return {k: cls._numbers_as_text(x) for k, x in v.items()} if isinstance(v, dict) else number_as_text(v)
 
     def truth_values(self) -> dict[str, float]:
         """Truth in internal units; missing optional entries default to 0 (Kq, Kpot, β/Vt, Kce required)."""

@@ -36,6 +36,11 @@ GIVEN_RANGE = (1e-9, 1e9)
 _NAME = re.compile(r"^[A-Za-z0-9_.\-]{1,64}$")
 
 
+def number_as_text(v: object) -> object:
+    """A bare JSON/YAML number (``4e-4``) as the text it reads as, a quantity in its field's unit; else ``v``."""
+    return str(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v
+
+
 class Given(BaseModel):
     """Values the lab handout gives the students, as quantity strings."""
 
@@ -53,7 +58,7 @@ class Given(BaseModel):
     @field_validator("*", mode="before")
     @classmethod
     def _as_text(cls, v: object) -> object:
-        return str(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v
+        return number_as_text(v)
 
     @model_validator(mode="after")
     def _check(self) -> Given:

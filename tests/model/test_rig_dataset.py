@@ -69,6 +69,8 @@ def test_ramps_show_the_p_error_and_pi_removing_it(default: Dataset) -> None:
 def test_a_station_file_may_give_bare_numbers_in_each_fields_unit(tmp_path: Path) -> None:
     """Read with YAML 1.2, ``4e-4`` is a number (YAML 1.1 kept it as text): it is the field's unit, as in ``given``."""
     text = (reference_dir() / "stations" / "default.yaml").read_text(encoding="utf-8")
-    assert "  position: 0.0004 in\n" in text
-    (tmp_path / "s.yaml").write_text(text.replace("  position: 0.0004 in\n", "  position: 4e-4\n"), encoding="utf-8")
-    assert load_station(tmp_path / "s.yaml").noise_values() == load_station("default").noise_values()
+    assert "  position: 0.0004 in\n" in text and '    bits: "14"\n' in text
+    (tmp_path / "s.yaml").write_text(text.replace("  position: 0.0004 in\n", "  position: 4e-4\n")
+                                     .replace('    bits: "14"\n', "    bits: 14\n"), encoding="utf-8")
+    mine, default = load_station(tmp_path / "s.yaml"), load_station("default")
+    assert mine.noise_values() == default.noise_values() and mine.effects == default.effects
