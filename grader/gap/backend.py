@@ -31,6 +31,9 @@ Array = NDArray[np.float64]
 #: every rig of the realistic space needs under ten, and a fit that strays to a stiffer β/Vt or Kce would
 #: otherwise cost minutes per request.
 FIT_MAX_SUBSTEPS = 100
+#: Most samples (runs × the longest among them) one engine call simulates: its five row arrays then hold
+#: 16 MB each. A fit on five 30 s runs asks for 700 runs at once per thread, which took 2.3 GB in one call.
+MAX_CALL_SAMPLES = 2_000_000
 
 
 @dataclass(frozen=True)
@@ -52,12 +55,31 @@ def worker(enabled: bool = True) -> Iterator[Executor | None]:
         yield ex
 
 
+def stretches(sizes: Sequence[int], budget: int, *, padded: bool) -> list[slice]:
+    """Consecutive stretches of items of these sizes [samples], each as long as stays within ``budget`` (one item
+    at least): their sum, or with ``padded`` their number times the largest (rows of an engine call)."""
+    out, start, total, largest = [], 0, 0, 0
+    for k, n in enumerate(sizes):
+        cost = (k - start + 1) * max(largest, n) if padded else total + n
+        if k > start and cost > budget:
+            out.append(slice(start, k))
+            start, total, largest = k, 0, 0
+        total, largest = total + n, max(largest, n)
+    return [*out, slice(start, len(sizes))] if sizes else out
+
+
 def _positions(points: Sequence[Point], which: Sequence[int], runs: Sequence[tuple[Controller, Array, Array]]
                ) -> list[Array]:
-    """x_k [in] of each point on run ``which[j]``; ``runs`` holds each run's (controller, command, noise)."""
-    return position_batch([pt.params for pt in points], [runs[i][0] for i in which], [pt.effects for pt in points],
-                          [runs[i][1] for i in which], [runs[i][2] for i in which],
-                          max_substeps=FIT_MAX_SUBSTEPS).run()
+    """x_k [in] of each point on run ``which[j]``; ``runs`` holds each run's (controller, command, noise).
+    Simulated in engine calls of at most :data:`MAX_CALL_SAMPLES` (each run's result is its own: how they
+    are grouped changes no bit)."""
+    out: list[Array] = []
+    for part in stretches([runs[i][1].size for i in which], MAX_CALL_SAMPLES, padded=True):
+        pts, idx = points[part], which[part]
+        out += position_batch([pt.params for pt in pts], [runs[i][0] for i in idx], [pt.effects for pt in pts],
+                              [runs[i][1] for i in idx], [runs[i][2] for i in idx],
+                              max_substeps=FIT_MAX_SUBSTEPS).run()
+    return out
 
 
 def _halves(requests: Sequence[tuple[Point, int]]) -> list[bool]:

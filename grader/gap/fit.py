@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from grader.gap.backend import Point
+from grader.gap.backend import Point, stretches
 from grader.gap.candidates import N_LINEAR, Candidate
 from grader.gap.lm import damped_steps, sumsq
 from grader.gap.objective import RunObjective
@@ -33,6 +33,9 @@ KCE_LINE = (-1.2, -0.6, 0.0, 0.5, 1.0)
 CONVERGED = 1e-4
 #: Cap on a normalised residual: a diverging trial model gets a large, finite cost.
 RES_CAP = 1e3
+#: Most samples simulated in one pass: the positions of a pass are all held until its residuals are taken. Every
+#: pass of a lab's runs (a few seconds each) fits in one; five 30 s runs need several.
+MAX_PASS_SAMPLES = 8_000_000
 
 
 @dataclass(frozen=True)
@@ -90,14 +93,14 @@ class BatchFitter:
 
     def residuals(self, jobs: Sequence[tuple[Candidate, Array, tuple[int, ...]]]) -> list[Array]:
         """Stacked residual of each (candidate, θ, runs) job."""
-        if not jobs:
-            return []
-        requests = [(pt, i) for c, th, idx in jobs for pt in [c.point(self.base, th)] for i in idx]
-        ys = iter(self.sim(requests))
-        out = []
-        for _, _, idx in jobs:
-            parts = [self.objectives[i].residual(next(ys)) for i in idx]
-            out.append(np.clip(np.nan_to_num(np.concatenate(parts), nan=RES_CAP), -RES_CAP, RES_CAP))
+        out: list[Array] = []
+        sizes = [sum(self.runs[i].n for i in idx) for _, _, idx in jobs]
+        for group in stretches(sizes, MAX_PASS_SAMPLES, padded=False):
+            requests = [(pt, i) for c, th, idx in jobs[group] for pt in [c.point(self.base, th)] for i in idx]
+            ys = iter(self.sim(requests))
+            for _, _, idx in jobs[group]:
+                parts = [self.objectives[i].residual(next(ys)) for i in idx]
+                out.append(np.clip(np.nan_to_num(np.concatenate(parts), nan=RES_CAP), -RES_CAP, RES_CAP))
         return out
 
     def line(self, grid: Sequence[tuple[Candidate, Array]], *, offsets: Sequence[float] = KCE_LINE,

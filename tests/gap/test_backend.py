@@ -6,13 +6,14 @@ import os
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 
-import pytest
-
 import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from grader.datasets import load
-from grader.gap import baseline
-from grader.gap.backend import Backend, Point, _halves, worker
+from grader.gap import backend, baseline
+from grader.gap.backend import Backend, Point, _halves, stretches, worker
 from grader.gap.runs import prepare_runs
 from grader.model import engine
 from grader.model.effects import EffectSet
@@ -76,3 +77,36 @@ def test_each_runs_requests_are_shared_by_both_threads(runs: int, points: int) -
     here = Counter(i for (_, i), a in zip(requests, away) if not a)
     assert all(abs(there[i] - here[i]) <= 1 for i in range(runs))
     assert abs(sum(away) - (len(away) - sum(away))) <= runs
+
+
+def test_engine_calls_stay_within_their_budget_and_change_no_bit(make: MakeDataset, monkeypatch: pytest.MonkeyPatch
+                                                                  ) -> None:
+    """A large batch goes to the engine in calls of at most MAX_CALL_SAMPLES padded samples (five 30 s runs asked
+    for 700 at once per thread and took 2.3 GB); the positions are those of one call, in order."""
+    runs, requests = _requests(make)
+    whole = Backend(runs)(requests)
+    sizes: list[tuple[int, int]] = []
+    real = backend.position_batch
+
+    def spy(params, controllers, effects, commands, noise=None, **kw):  # noqa: ANN001, ANN003, ANN202
+        sizes.append((len(commands), max(c.size for c in commands)))
+        return real(params, controllers, effects, commands, noise, **kw)
+
+    budget = 3 * max(r.n for r in runs)
+    monkeypatch.setattr(backend, "MAX_CALL_SAMPLES", budget)
+    monkeypatch.setattr(backend, "position_batch", spy)
+    parts = Backend(runs)(requests)
+    assert len(sizes) > 2 and sum(n for n, _ in sizes) == len(requests)
+    assert all(n * k <= budget for n, k in sizes)
+    assert all(np.array_equal(a, b) for a, b in zip(parts, whole, strict=True))
+
+
+@given(st.lists(st.integers(1, 50), max_size=40), st.integers(1, 120))
+def test_engine_calls_cover_every_request_once_in_order(lengths: list[int], budget: int) -> None:
+    """Consecutive stretches, every request in exactly one; each within the budget once padded to its longest
+    run, unless a single run is longer."""
+    calls = stretches(lengths, budget, padded=True)
+    assert [k for s in calls for k in range(len(lengths))[s]] == list(range(len(lengths)))
+    for s in calls:
+        part = lengths[s]
+        assert part and (len(part) * max(part) <= budget or len(part) == 1)

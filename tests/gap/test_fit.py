@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from grader.datasets import load
-from grader.gap import baseline
-from grader.gap.backend import Backend
+from grader.gap import baseline, fit
+from grader.gap.backend import Backend, stretches
 from grader.gap.candidates import combine, make_candidates
 from grader.gap.fit import BatchFitter, grid_starts
 from grader.gap.objective import objective
@@ -69,3 +72,30 @@ def test_no_addition_ends_a_second_search_worse_than_the_first_effect_alone(make
     found = second_effect(objs, base, first, [cands["sampling_delay"], cands["valve_saturation"]])
     assert [s.candidate.effect for s in found.states][-1] == "coulomb_friction"
     assert all(s.cost <= found.states[-1].cost for s in found.states[:-1])
+
+
+def test_passes_split_by_their_budget_give_the_residuals_of_one_pass(make: MakeDataset,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """Jobs simulated in passes of at most MAX_PASS_SAMPLES (a pass's positions are all held until its residuals are
+    taken) give the residuals of a single pass, job by job, and no pass holds more than the budget."""
+    fitter, states = _fitter(make)
+    every = tuple(range(len(fitter.runs)))
+    jobs = [(s.candidate, s.theta + d, runs) for s in states for d in (0.0, 0.01, -0.02)
+            for runs in (every, every[:1], every[1:])]
+    whole = fitter.residuals(jobs)
+    passes: list[int] = []
+    sim = fitter.sim
+    monkeypatch.setattr(fitter, "sim", lambda requests: passes.append(sum(fitter.runs[i].n for _, i in requests))
+                        or sim(requests))
+    budget = 2 * sum(r.n for r in fitter.runs)
+    monkeypatch.setattr(fit, "MAX_PASS_SAMPLES", budget)
+    split = fitter.residuals(jobs)
+    assert len(passes) > 3 and max(passes) <= budget
+    assert all(np.array_equal(a, b) for a, b in zip(split, whole, strict=True))
+
+
+@given(st.lists(st.integers(1, 50), max_size=40), st.integers(1, 120))
+def test_passes_cover_every_job_once_in_order(sizes: list[int], budget: int) -> None:
+    passes = stretches(sizes, budget, padded=False)
+    assert [k for s in passes for k in range(len(sizes))[s]] == list(range(len(sizes)))
+    assert all(sizes[s] and (sum(sizes[s]) <= budget or len(sizes[s]) == 1) for s in passes)
