@@ -21,6 +21,7 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
+from matplotlib.transforms import blended_transform_factory
 from numpy.typing import NDArray
 from PIL import Image
 
@@ -161,7 +162,13 @@ def warm() -> None:
 
 
 def candidates_figure(data: CandidatesFigure) -> bytes:
-    """Horizontal bars of held-out shrink per candidate, best at the top; the verdict highlighted."""
+    """The candidates' figure (:func:`draw_candidates`) as PNG bytes."""
+    return png(draw_candidates(data))
+
+
+def draw_candidates(data: CandidatesFigure) -> Figure:
+    """Horizontal bars of held-out shrink per candidate, best at the top, each labelled with its shrink; the verdict
+    highlighted; each one's held-out NRMSE in a column right of the bars."""
     order = sorted(range(len(data.names)), key=lambda i: data.shrink[i])
     fig = Figure(figsize=(7.0, 0.45 * len(order) + 1.2))
     ax = fig.subplots()
@@ -169,13 +176,15 @@ def candidates_figure(data: CandidatesFigure) -> bytes:
     shrink = np.array([100 * data.shrink[i] for i in order])
     colours = [AUGMENTED if data.is_verdict[i] else "#8da0cb" for i in order]
     ax.barh(y, np.clip(shrink, -100, 100), color=colours)
+    beside = blended_transform_factory(ax.transAxes, ax.transData)  # a column right of the axes, one row per bar
     for yi, i, s in zip(y, order, shrink):
-        label = f"{0.0 if abs(s) < 0.5 else s:.0f} %  (held-out NRMSE {100 * data.heldout[i]:.2g} %)"
-        ax.text(max(min(s, 100), 0) + 1, yi, label, va="center", fontsize=8)
+        ax.text(max(min(s, 100), 0) + 1, yi, f"{0.0 if abs(s) < 0.5 else s:.0f} %", va="center", fontsize=8)
+        ax.text(1.03, yi, f"{100 * data.heldout[i]:.2g} %", transform=beside, va="center", fontsize=8)
+    ax.text(1.03, 1.0, "held-out\nNRMSE", transform=ax.transAxes, va="bottom", fontsize=8)
     ax.set_yticks(y, [data.names[i] for i in order], fontsize=9)
     ax.axvline(0.0, color="#999999", lw=0.6)
-    ax.set_xlim(min(-5.0, float(np.clip(shrink.min(), -100, 0)) - 5), 150)
+    ax.set_xlim(min(-5.0, float(np.clip(shrink.min(), -100, 0)) - 5), 125)  # room for "100 %"
     ax.set_xlabel("held-out gap removed [%] (leave-one-run-out)")
     ax.set_title(f"Candidates ranked by shrink — verdict: {data.verdict}", fontsize=10)
     fig.tight_layout()
-    return png(fig)
+    return fig

@@ -14,7 +14,8 @@ from matplotlib.figure import Figure
 from matplotlib.text import Text
 
 from grader.gap.diagnose import Analysis
-from grader.gap.plots import RunCanvas, draw_run, png
+from grader.gap.figures import CandidatesFigure
+from grader.gap.plots import RunCanvas, draw_candidates, draw_run, png
 from grader.gap.report import render_html, run_job, run_title
 from grader.gap.runs import GapRun
 from grader.gap.segments import segments_of
@@ -115,3 +116,24 @@ def test_report_says_which_nrmse_is_which_and_what_noise_alone_means(analysed: C
     glossary = page.split("How to read the numbers.")[1].split("</p>")[0]
     for term in ("Whole-run NRMSE", "Held-out NRMSE", "Noise alone", "leave-one-run-out", "reading noise"):
         assert term in glossary
+
+
+@pytest.mark.parametrize("shrink", [(1.0, 0.97, 0.4, 0.0, -2.5), (0.3, 0.2, -0.004, -0.6, -1.0), (0.999, 0.998, 0.5, 0.1, 0.0)])
+def test_candidates_labels_stay_inside_the_axes_and_the_nrmse_column_beside_them(shrink: tuple[float, ...]) -> None:
+    """Each bar's shrink label ends inside the axes whatever the shrink (a 72 % label with its NRMSE once crossed the
+    right spine); the held-out NRMSEs stand in a column right of the axes, one per bar, overlapping nothing."""
+    names = ("valve saturation", "valve dynamics", "pressure flow nonlinearity", "no effect", "sampling delay")
+    fig = draw_candidates(CandidatesFigure(names, shrink, (0.0123, 0.02, 0.1, 0.2, 0.7),
+                                           (True, False, False, False, False), "valve saturation"))
+    fig.draw_without_rendering()
+    ax = fig.axes[0]
+    box = ax.get_window_extent()
+    bars = [t for t in ax.texts if t.get_text().endswith(" %") and t.get_transform() == ax.transData]
+    column = [t for t in ax.texts if t not in bars]
+    assert len(bars) == 5 and len(column) == 6  # five NRMSEs and the column's heading
+    for t in bars:
+        e = t.get_window_extent()
+        assert box.x0 <= e.x0 and e.x1 <= box.x1, t.get_text()
+    extents = [t.get_window_extent() for t in column]
+    assert all(e.x0 > box.x1 for e in extents)
+    assert not any(a.overlaps(b) for a, b in itertools.combinations(extents + [ax.title.get_window_extent()], 2))
