@@ -185,6 +185,9 @@ def draw_candidates(data: CandidatesFigure) -> Figure:
     ax.axvline(0.0, color="#999999", lw=0.6)
     ax.set_xlim(min(-5.0, float(np.clip(shrink.min(), -100, 0)) - 5), 125)  # room for "100 %"
     ax.set_xlabel("held-out gap removed [%] (leave-one-run-out)")
-    ax.set_title(f"Candidates ranked by shrink — verdict: {data.verdict}", fontsize=10)
+    title = f"Candidates ranked by shrink — verdict: {data.verdict}"
+    if not any(data.is_verdict):  # viscous friction or the ADC, named by other evidence than these fits
+        title += "\n(named by other evidence than this ranking: see the summary)"
+    ax.set_title(title, fontsize=10)
     fig.tight_layout()
     return fig

@@ -118,13 +118,17 @@ def test_report_says_which_nrmse_is_which_and_what_noise_alone_means(analysed: C
         assert term in glossary
 
 
-@pytest.mark.parametrize("shrink", [(1.0, 0.97, 0.4, 0.0, -2.5), (0.3, 0.2, -0.004, -0.6, -1.0), (0.999, 0.998, 0.5, 0.1, 0.0)])
-def test_candidates_labels_stay_inside_the_axes_and_the_nrmse_column_beside_them(shrink: tuple[float, ...]) -> None:
+@pytest.mark.parametrize("shrink, verdict", [((1.0, 0.97, 0.4, 0.0, -2.5), 0), ((0.3, 0.2, -0.004, -0.6, -1.0), 1),
+                                             ((0.999, 0.998, 0.5, 0.1, 0.0), None)])
+def test_candidates_labels_stay_inside_the_axes_and_the_nrmse_column_beside_them(shrink: tuple[float, ...],
+                                                                                  verdict: int | None) -> None:
     """Each bar's shrink label ends inside the axes whatever the shrink (a 72 % label with its NRMSE once crossed the
-    right spine); the held-out NRMSEs stand in a column right of the axes, one per bar, overlapping nothing."""
+    right spine); the held-out NRMSEs stand in a column right of the axes, one per bar, overlapping nothing; the
+    title, on two lines where the verdict is named by other evidence than the ranking, stays inside the figure."""
     names = ("valve saturation", "valve dynamics", "pressure flow nonlinearity", "no effect", "sampling delay")
     fig = draw_candidates(CandidatesFigure(names, shrink, (0.0123, 0.02, 0.1, 0.2, 0.7),
-                                           (True, False, False, False, False), "valve saturation"))
+                                           tuple(k == verdict for k in range(5)),
+                                           "sensor quantization" if verdict is None else names[verdict]))
     fig.draw_without_rendering()
     ax = fig.axes[0]
     box = ax.get_window_extent()
@@ -135,5 +139,8 @@ def test_candidates_labels_stay_inside_the_axes_and_the_nrmse_column_beside_them
         e = t.get_window_extent()
         assert box.x0 <= e.x0 and e.x1 <= box.x1, t.get_text()
     extents = [t.get_window_extent() for t in column]
+    title = ax.title.get_window_extent()
     assert all(e.x0 > box.x1 for e in extents)
-    assert not any(a.overlaps(b) for a, b in itertools.combinations(extents + [ax.title.get_window_extent()], 2))
+    assert not any(a.overlaps(b) for a, b in itertools.combinations([*extents, title], 2))
+    assert fig.bbox.x0 <= title.x0 and title.x1 <= fig.bbox.x1 and title.y1 <= fig.bbox.y1
+    assert ("other evidence" in ax.get_title()) == (verdict is None)
