@@ -368,8 +368,11 @@ def _run_batch(par, ctl, r, noise, K, m, Y, U, X):  # noqa: ANN001, ANN201, N803
 
 def stepped(a: RigArrays) -> NDArray[np.bool_]:
     """Runs whose cost grows with their fastest mode, by the plant's own predicates: RK4 substeps where it is not
-    linear between events, or events to locate; a linear run without events is one exact step per sample."""
-    return np.array([not plant.is_linear.py_func(p) or plant.has_events.py_func(p) for p in plant.pack(a)], dtype=bool)
+    linear between events, or events to locate; a linear run without events is one exact step per sample. The
+    predicates are called as Python: numba's ``py_func``, or the function itself where ``NUMBA_DISABLE_JIT`` left it
+    plain."""
+    is_linear, has_events = (getattr(f, "py_func", f) for f in (plant.is_linear, plant.has_events))
+    return np.array([not is_linear(p) or has_events(p) for p in plant.pack(a)], dtype=bool)
 
 
 def run(a: RigArrays, r: Array, noise: Array, K: NDArray[np.int64], m: NDArray[np.int64]) -> tuple[Array, Array, Array]:
