@@ -32,7 +32,8 @@ Array = NDArray[np.float64]
 #: otherwise cost minutes per request.
 FIT_MAX_SUBSTEPS = 100
 #: Most samples (runs × the longest among them) one engine call simulates: its five row arrays then hold
-#: 16 MB each. A fit on five 30 s runs asks for 700 runs at once per thread, which took 2.3 GB in one call.
+#: 16 MB each. A fit on five 30 s runs asks for 700 runs at once per thread: in one call each, the diagnosis
+#: peaked at 2.3 GB.
 MAX_CALL_SAMPLES = 2_000_000
 
 
