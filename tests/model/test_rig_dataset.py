@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from grader.datasets import Dataset, load
+from grader.datasets.schema import Given
 from grader.stations import load_station, reference_dir
 from grader.synth import make_dataset, read_truth, station_effects
 
@@ -74,3 +75,17 @@ def test_a_station_file_may_give_bare_numbers_in_each_fields_unit(tmp_path: Path
                                      .replace('    bits: "14"\n', "    bits: 14\n"), encoding="utf-8")
     mine, default = load_station(tmp_path / "s.yaml"), load_station("default")
     assert mine.noise_values() == default.noise_values() and mine.effects == default.effects
+
+
+@pytest.mark.parametrize("bare, written", [
+    ({"bore": 0.5, "rod": "0.25"}, {"bore": "0.5 in", "rod": "0.25 in"}),
+    ({"weight": 29}, {"weight": "29 lbf"}),
+    ({"weight": None, "mass": 0.075}, {"weight": None, "mass": "0.075 lbf*s**2/in"}),
+    ({"supply_pressure": 1000, "Kamp": "5", "i_max": 50.0, "sample_time": 0.001},
+     {"supply_pressure": "1000 psi", "Kamp": "5 mA/V", "i_max": "50 mA", "sample_time": "1 ms"}),
+])
+def test_a_given_value_without_a_unit_is_in_its_defaults_unit(bare: dict, written: dict) -> None:
+    """As docs/reference/dataset-format.md says: a bare number or unitless text in ``given`` is in the unit of the
+    field's default (weight lbf, mass lbf·s²/in)."""
+    base = {"weight": "29 lbf"}
+    assert Given(**{**base, **bare}).values() == pytest.approx(Given(**{**base, **written}).values(), rel=1e-15)
