@@ -33,7 +33,7 @@ Array = NDArray[np.float64]
 FIT_MAX_SUBSTEPS = 100
 #: Most samples (runs × the longest among them) one engine call simulates: its five row arrays then hold
 #: 16 MB each. A fit on five 30 s runs asks for 700 runs at once per thread: in one call each, the diagnosis
-#: peaked at 2.3 GB.
+#: peaked at 2.4 GB. Run A's lab-sized datasets need at most 1.1 million per call on two cores.
 MAX_CALL_SAMPLES = 2_000_000
 
 
@@ -66,7 +66,7 @@ def stretches(sizes: Sequence[int], budget: int, *, padded: bool) -> list[slice]
             out.append(slice(start, k))
             start, total, largest = k, 0, 0
         total, largest = total + n, max(largest, n)
-    return [*out, slice(start, len(sizes))] if sizes else out
+    return [*out, slice(start, len(sizes))] if len(sizes) else out
 
 
 def _positions(points: Sequence[Point], which: Sequence[int], runs: Sequence[tuple[Controller, Array, Array]]

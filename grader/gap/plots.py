@@ -21,7 +21,7 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
-from matplotlib.transforms import blended_transform_factory
+from matplotlib.transforms import blended_transform_factory, offset_copy
 from numpy.typing import NDArray
 from PIL import Image
 
@@ -166,28 +166,50 @@ def candidates_figure(data: CandidatesFigure) -> bytes:
     return png(draw_candidates(data))
 
 
+#: Where the held-out NRMSE column's right edge stands [pt] right of the axes.
+COLUMN_RIGHT = 46.0
+#: Shrink [%] from which a bar's label is drawn inside its end.
+INSIDE = 60.0
+
+
+def _nrmse_text(v: float) -> str:
+    """A held-out NRMSE [%] to two significant digits, trailing zeros kept ("0.40", "2.0"), whole numbers from 10 up
+    ("101"), never an exponent."""
+    text = np.format_float_positional(v, precision=2, unique=False, fractional=False, trim="k")
+    return f"{v:.0f}" if text.endswith(".") else text
+
+
 def draw_candidates(data: CandidatesFigure) -> Figure:
     """Horizontal bars of held-out shrink per candidate, best at the top, each labelled with its shrink; the verdict
-    highlighted; each one's held-out NRMSE in a column right of the bars."""
+    highlighted; each one's held-out NRMSE in a right-aligned column right of the axes; the title above both, the
+    verdict on its own line."""
     order = sorted(range(len(data.names)), key=lambda i: data.shrink[i])
-    fig = Figure(figsize=(7.0, 0.45 * len(order) + 1.2))
+    fig = Figure(figsize=(7.0, 0.45 * len(order) + 1.5))
     ax = fig.subplots()
     y = np.arange(len(order))
     shrink = np.array([100 * data.shrink[i] for i in order])
     colours = [AUGMENTED if data.is_verdict[i] else "#8da0cb" for i in order]
     ax.barh(y, np.clip(shrink, -100, 100), color=colours)
-    beside = blended_transform_factory(ax.transAxes, ax.transData)  # a column right of the axes, one row per bar
+    column = offset_copy(blended_transform_factory(ax.transAxes, ax.transData), fig=fig, x=COLUMN_RIGHT, units="points")
     for yi, i, s in zip(y, order, shrink):
-        ax.text(max(min(s, 100), 0) + 1, yi, f"{0.0 if abs(s) < 0.5 else s:.0f} %", va="center", fontsize=8)
-        ax.text(1.03, yi, f"{100 * data.heldout[i]:.2g} %", transform=beside, va="center", fontsize=8)
-    ax.text(1.03, 1.0, "held-out\nNRMSE", transform=ax.transAxes, va="bottom", fontsize=8)
+        label = f"{round(s) + 0:.0f} %"  # + 0: no "-0"
+        if s >= INSIDE:  # at the end of a long bar, inside it (outside it could cross the axes' edge)
+            ax.text(min(s, 100) - 1, yi, label, va="center", ha="right", fontsize=8)
+        else:
+            ax.text(max(s, 0) + 1, yi, label, va="center", fontsize=8)
+        ax.text(1.0, yi, f"{_nrmse_text(100 * data.heldout[i])} %", transform=column, va="center", ha="right",
+                fontsize=8)
+    ax.text(1.0, 1.0, "held-out\nNRMSE", transform=offset_copy(ax.transAxes, fig=fig, x=COLUMN_RIGHT, units="points"),
+            va="bottom", ha="right", fontsize=8)
     ax.set_yticks(y, [data.names[i] for i in order], fontsize=9)
     ax.axvline(0.0, color="#999999", lw=0.6)
-    ax.set_xlim(min(-5.0, float(np.clip(shrink.min(), -100, 0)) - 5), 125)  # room for "100 %"
+    left = min(-5.0, float(np.clip(shrink.min(), -100, 0)) - 5)
+    ax.set_xlim(left, 105)
+    ax.set_xticks([t for t in ax.get_xticks() if left <= t <= 100])  # no tick beyond what a shrink can reach
     ax.set_xlabel("held-out gap removed [%] (leave-one-run-out)")
-    title = f"Candidates ranked by shrink — verdict: {data.verdict}"
+    title = f"Candidates ranked by shrink\nverdict: {data.verdict}"
     if not any(data.is_verdict):  # viscous friction or the ADC, named by other evidence than these fits
         title += "\n(named by other evidence than this ranking: see the summary)"
-    ax.set_title(title, fontsize=10)
+    fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return fig

@@ -148,10 +148,12 @@ def run_job(run: GapRun, segs: list[Segment], y_lin: Array, y_aug: Array, effect
 
 def candidates_job(d: Diagnosis) -> CandidatesFigure:
     """What the candidates' figure shows."""
-    c = d.candidates
+    c, v = d.candidates, d.verdict
+    named = v.effect if v.second_effect is None else f"{v.effect}+{v.second_effect}"
+    bar = named if any(x.effect == named for x in c) else v.effect  # the pair's own bar where it was fitted
     return CandidatesFigure(tuple(effect_name(x.effect) for x in c), tuple(x.shrink for x in c),
-                            tuple(x.heldout_nrmse_after for x in c), tuple(x.effect == d.verdict.effect for x in c),
-                            effect_name(d.verdict.effect))
+                            tuple(x.heldout_nrmse_after for x in c), tuple(x.effect == bar for x in c),
+                            effect_name(named))
 
 
 def _render_plots(analysis: Analysis, helpers: PlotHelpers | None) -> dict[str, bytes]:

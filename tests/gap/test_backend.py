@@ -82,9 +82,9 @@ def test_each_runs_requests_are_shared_by_both_threads(runs: int, points: int) -
 def test_engine_calls_stay_within_their_budget_and_change_no_bit(make: MakeDataset, monkeypatch: pytest.MonkeyPatch
                                                                   ) -> None:
     """A large batch goes to the engine in calls of at most MAX_CALL_SAMPLES padded samples (five 30 s runs asked
-    for 700 at once per thread and took 2.3 GB); the positions are those of one call, in order."""
+    for 700 at once per thread, and the diagnosis peaked at 2.4 GB); the positions are those of one call, in order.
+    A lab-sized batch stays one call."""
     runs, requests = _requests(make)
-    whole = Backend(runs)(requests)
     sizes: list[tuple[int, int]] = []
     real = backend.position_batch
 
@@ -92,9 +92,12 @@ def test_engine_calls_stay_within_their_budget_and_change_no_bit(make: MakeDatas
         sizes.append((len(commands), max(c.size for c in commands)))
         return real(params, controllers, effects, commands, noise, **kw)
 
+    monkeypatch.setattr(backend, "position_batch", spy)
+    whole = Backend(runs)(requests)
+    assert sizes == [(len(requests), max(r.n for r in runs))]
+    sizes.clear()
     budget = 3 * max(r.n for r in runs)
     monkeypatch.setattr(backend, "MAX_CALL_SAMPLES", budget)
-    monkeypatch.setattr(backend, "position_batch", spy)
     parts = Backend(runs)(requests)
     assert len(sizes) > 2 and sum(n for n, _ in sizes) == len(requests)
     assert all(n * k <= budget for n, k in sizes)
@@ -104,9 +107,11 @@ def test_engine_calls_stay_within_their_budget_and_change_no_bit(make: MakeDatas
 @given(st.lists(st.integers(1, 50), max_size=40), st.integers(1, 120))
 def test_engine_calls_cover_every_request_once_in_order(lengths: list[int], budget: int) -> None:
     """Consecutive stretches, every request in exactly one; each within the budget once padded to its longest
-    run, unless a single run is longer."""
+    run, unless a single run is longer, and as long as it can be: the next request would take it over."""
     calls = stretches(lengths, budget, padded=True)
     assert [k for s in calls for k in range(len(lengths))[s]] == list(range(len(lengths)))
     for s in calls:
         part = lengths[s]
         assert part and (len(part) * max(part) <= budget or len(part) == 1)
+        if s.stop < len(lengths):
+            assert (len(part) + 1) * max(*part, lengths[s.stop]) > budget

@@ -77,16 +77,19 @@ def test_no_addition_ends_a_second_search_worse_than_the_first_effect_alone(make
 def test_passes_split_by_their_budget_give_the_residuals_of_one_pass(make: MakeDataset,
                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
     """Jobs simulated in passes of at most MAX_PASS_SAMPLES (a pass's positions are all held until its residuals are
-    taken) give the residuals of a single pass, job by job, and no pass holds more than the budget."""
+    taken) give the residuals of a single pass, job by job, and no pass holds more than the budget; at the default
+    budget, a lab's batch is one pass."""
     fitter, states = _fitter(make)
     every = tuple(range(len(fitter.runs)))
     jobs = [(s.candidate, s.theta + d, runs) for s in states for d in (0.0, 0.01, -0.02)
             for runs in (every, every[:1], every[1:])]
-    whole = fitter.residuals(jobs)
     passes: list[int] = []
     sim = fitter.sim
     monkeypatch.setattr(fitter, "sim", lambda requests: passes.append(sum(fitter.runs[i].n for _, i in requests))
                         or sim(requests))
+    whole = fitter.residuals(jobs)
+    assert len(passes) == 1
+    passes.clear()
     budget = 2 * sum(r.n for r in fitter.runs)
     monkeypatch.setattr(fit, "MAX_PASS_SAMPLES", budget)
     split = fitter.residuals(jobs)
@@ -96,6 +99,9 @@ def test_passes_split_by_their_budget_give_the_residuals_of_one_pass(make: MakeD
 
 @given(st.lists(st.integers(1, 50), max_size=40), st.integers(1, 120))
 def test_passes_cover_every_job_once_in_order(sizes: list[int], budget: int) -> None:
+    """Each job in one pass, in order; each pass within the budget unless one job alone exceeds it, and as long as
+    it can be: the next job would take it over."""
     passes = stretches(sizes, budget, padded=False)
     assert [k for s in passes for k in range(len(sizes))[s]] == list(range(len(sizes)))
     assert all(sizes[s] and (sum(sizes[s]) <= budget or len(sizes[s]) == 1) for s in passes)
+    assert all(sum(sizes[s]) + sizes[s.stop] > budget for s in passes if s.stop < len(sizes))

@@ -16,9 +16,10 @@ from matplotlib.text import Text
 from grader.gap.diagnose import Analysis
 from grader.gap.figures import CandidatesFigure
 from grader.gap.plots import RunCanvas, draw_candidates, draw_run, png
-from grader.gap.report import render_html, run_job, run_title
+from grader.gap.report import candidates_job, render_html, run_job, run_title
 from grader.gap.runs import GapRun
 from grader.gap.segments import segments_of
+from grader.gap.summary import effect_name
 from grader.model.params import Controller
 
 from .test_parts import _step_run
@@ -118,29 +119,55 @@ def test_report_says_which_nrmse_is_which_and_what_noise_alone_means(analysed: C
         assert term in glossary
 
 
-@pytest.mark.parametrize("shrink, verdict", [((1.0, 0.97, 0.4, 0.0, -2.5), 0), ((0.3, 0.2, -0.004, -0.6, -1.0), 1),
-                                             ((0.999, 0.998, 0.5, 0.1, 0.0), None)])
+PAIR = "valve deadband + pressure flow nonlinearity"  # the longest name a candidate can have
+
+
+@pytest.mark.parametrize("shrink, verdict", [((1.0, 0.97, 0.4, -0.00005, -2.5), 0), ((0.3, 0.2, -0.004, -0.6, -1.0), 2),
+                                             ((0.999, 0.998, 0.5, 0.1, 0.0), None), ((0.1, 0.2, 0.3, 0.4, 0.5), 1)])
 def test_candidates_labels_stay_inside_the_axes_and_the_nrmse_column_beside_them(shrink: tuple[float, ...],
                                                                                   verdict: int | None) -> None:
     """Each bar's shrink label ends inside the axes whatever the shrink (a 72 % label with its NRMSE once crossed the
-    right spine); the held-out NRMSEs stand in a column right of the axes, one per bar, overlapping nothing; the
-    title, on two lines where the verdict is named by other evidence than the ranking, stays inside the figure."""
-    names = ("valve saturation", "valve dynamics", "pressure flow nonlinearity", "no effect", "sampling delay")
-    fig = draw_candidates(CandidatesFigure(names, shrink, (0.0123, 0.02, 0.1, 0.2, 0.7),
-                                           tuple(k == verdict for k in range(5)),
+    right spine), and none reads "-0 %"; the held-out NRMSEs stand right-aligned in a column right of the axes, one
+    per bar, without an exponent; the title, with the longest verdict and on three lines where the verdict is named by
+    other evidence than the ranking, stays inside the figure and overlaps nothing; no tick passes 100 %."""
+    names = ("valve saturation", PAIR, "pressure flow nonlinearity", "no effect", "sampling delay + valve dynamics")
+    heldout = (0.0123, 0.02, 1.06, 0.004, 0.0996)
+    fig = draw_candidates(CandidatesFigure(names, shrink, heldout, tuple(k == verdict for k in range(5)),
                                            "sensor quantization" if verdict is None else names[verdict]))
     fig.draw_without_rendering()
     ax = fig.axes[0]
     box = ax.get_window_extent()
-    bars = [t for t in ax.texts if t.get_text().endswith(" %") and t.get_transform() == ax.transData]
+    bars = [t for t in ax.texts if t.get_transform() == ax.transData]
     column = [t for t in ax.texts if t not in bars]
     assert len(bars) == 5 and len(column) == 6  # five NRMSEs and the column's heading
     for t in bars:
         e = t.get_window_extent()
-        assert box.x0 <= e.x0 and e.x1 <= box.x1, t.get_text()
+        assert box.x0 <= e.x0 and e.x1 <= box.x1 and t.get_text() != "-0 %", t.get_text()
     extents = [t.get_window_extent() for t in column]
-    title = ax.title.get_window_extent()
-    assert all(e.x0 > box.x1 for e in extents)
-    assert not any(a.overlaps(b) for a, b in itertools.combinations([*extents, title], 2))
-    assert fig.bbox.x0 <= title.x0 and title.x1 <= fig.bbox.x1 and title.y1 <= fig.bbox.y1
-    assert ("other evidence" in ax.get_title()) == (verdict is None)
+    assert all(e.x0 > box.x1 for e in extents) and max(e.x1 for e in extents) - min(e.x1 for e in extents) < 0.5
+    assert sorted(t.get_text() for t in column if "NRMSE" not in t.get_text()) == sorted(
+        ["1.2 %", "2.0 %", "106 %", "0.40 %", "10 %"])  # two digits, trailing zeros kept, no exponent
+    title = fig.get_suptitle()
+    assert ("other evidence" in title) == (verdict is None)
+    top = fig._suptitle.get_window_extent()  # noqa: SLF001 (matplotlib keeps the suptitle's artist there)
+    assert fig.bbox.x0 <= top.x0 and top.x1 <= fig.bbox.x1 and top.y1 <= fig.bbox.y1
+    assert not any(a.overlaps(b) for a, b in itertools.combinations([*extents, top, box], 2))
+    assert max(ax.get_xticks()) <= 100
+
+
+def test_the_candidates_figure_highlights_the_verdicts_pair_and_names_both(analysed: Callable[..., Analysis]) -> None:
+    """A verdict with a second effect names both in the title and highlights the pair's own bar where it was fitted
+    (the single effect's bar was highlighted under a title naming only it); a verdict no candidate holds highlights
+    nothing."""
+    d = analysed("coulomb_friction", {"coulomb_friction": {"Fc": 2.0}}).diagnosis
+    first = d.verdict.effect
+    pair = d.candidates[-1].model_copy(update={"effect": f"{first}+sampling_delay"})
+    both = d.model_copy(update={"candidates": [*d.candidates, pair],
+                                "verdict": d.verdict.model_copy(update={"second_effect": "sampling_delay"})})
+    job = candidates_job(both)
+    assert job.verdict == f"{effect_name(first)} + sampling delay"
+    assert [n for n, v in zip(job.names, job.is_verdict) if v] == [effect_name(pair.effect)]
+    adc = d.verdict.model_copy(update={"effect": "sensor_quantization"})
+    alone = candidates_job(d.model_copy(update={"verdict": adc}))
+    assert alone.verdict == "sensor quantization" and not any(alone.is_verdict)
+    assert sum(candidates_job(d).is_verdict) == 1

@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -155,16 +156,17 @@ def test_a_stiff_linear_model_without_events_is_stepped_exactly_whatever_the_sub
 
 def test_the_engine_runs_as_plain_python_under_numba_disable_jit(p: RigParams) -> None:
     """NUMBA_DISABLE_JIT=1 (numba's own debugging switch) leaves the kernels plain functions: the engine still runs
-    and gives the compiled engine's positions (it once raised AttributeError on ``py_func``)."""
+    (it once raised AttributeError on ``py_func``) and gives the compiled engine's readings."""
     code = ("import json, numpy as np; from grader.model.rig import simulate_rig; from grader.stations import "
             "load_station; from grader.model.params import Controller; from grader.model.effects import EffectSet; "
             "p = load_station('default').params(); t = np.arange(60) * p.sample_time; "
             "y, _ = simulate_rig(p, Controller(25), t, np.where(t > 0.005, 0.1, 0.0), "
             "EffectSet.parse(['coulomb_friction:Fc=2lbf'])); print(json.dumps(y.tolist()))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
-                          env={**os.environ, "NUMBA_DISABLE_JIT": "1"})
+                          env={**os.environ, "NUMBA_DISABLE_JIT": "1"}, cwd=Path(__file__).parents[2])
     assert done.returncode == 0, done.stderr[-500:]
     t = np.arange(60) * p.sample_time
-    y, _ = simulate_rig(p, Controller(25), t, np.where(t > 0.005, 0.1, 0.0), EffectSet.parse(["coulomb_friction:Fc=2lbf"]))
+    friction = EffectSet.parse(["coulomb_friction:Fc=2lbf"])
+    y, _ = simulate_rig(p, Controller(25), t, np.where(t > 0.005, 0.1, 0.0), friction)
     assert np.abs(y).max() > 0.01  # the step moved the rig
     np.testing.assert_allclose(json.loads(done.stdout), y, rtol=0, atol=1e-12)
