@@ -95,7 +95,7 @@ def parse(name: str, text: str, *, as_json: bool, max_yaml_events: int = MAX_YAM
             depth += isinstance(event, yaml.CollectionStartEvent) - isinstance(event, yaml.CollectionEndEvent)
             if depth > MAX_DEPTH:  # the scanner's cost grows with the depth: 200 kB of '[' took minutes
                 raise GraderError(f"{name}: YAML nested too deeply")
-        return yaml.load(text, Loader=CoreLoader)  # a SafeLoader: no Python objects
+        return load_yaml(text)
     except json.JSONDecodeError as exc:
         raise GraderError(f"{name}: not valid JSON: {_json_fault(exc)}") from None
     except yaml.YAMLError as exc:
