@@ -2,7 +2,8 @@
 
 A :class:`Point` is one model (linear parameters plus an :class:`EffectSet`). A request
 ``(point, run index)`` asks for that model's position x_k [in] on that run, with the
-model's controller reading x_k plus the run's estimated reading noise. All requests go
+model's controller reading x_k plus the run's estimated reading noise; a replaying backend drives each run by the
+controller output the rig recorded instead (:mod:`grader.gap.replay`). All requests go
 through the compiled rig engine (:func:`grader.model.rig.simulate_positions`), whatever their
 number (half of each run's in a worker thread when :func:`worker` provides one: the compiled engine
 releases the GIL, so the diagnosis uses two cores). Known hardware limits (DAC ±10 V,
@@ -69,9 +70,10 @@ def stretches(sizes: Sequence[int], budget: int, *, padded: bool) -> list[slice]
     return [*out, slice(start, len(sizes))] if len(sizes) else out
 
 
-def _positions(points: Sequence[Point], which: Sequence[int], runs: Sequence[tuple[Controller, Array, Array]]
-               ) -> list[Array]:
-    """x_k [in] of each point on run ``which[j]``; ``runs`` holds each run's (controller, command, noise).
+def _positions(points: Sequence[Point], which: Sequence[int], runs: Sequence[tuple[Controller, Array, Array]],
+               replay: bool = False) -> list[Array]:
+    """x_k [in] of each point on run ``which[j]``; ``runs`` holds each run's (controller, command, noise), or with
+    ``replay`` (controller, command, recorded controller output [V]).
     Simulated in engine calls of at most :data:`MAX_CALL_SAMPLES` (each run's result is its own: how they
     are grouped changes no bit)."""
     out: list[Array] = []
@@ -79,7 +81,7 @@ def _positions(points: Sequence[Point], which: Sequence[int], runs: Sequence[tup
         pts, idx = points[part], which[part]
         out += position_batch([pt.params for pt in pts], [runs[i][0] for i in idx], [pt.effects for pt in pts],
                               [runs[i][1] for i in idx], [runs[i][2] for i in idx],
-                              max_substeps=FIT_MAX_SUBSTEPS).run()
+                              max_substeps=FIT_MAX_SUBSTEPS, replay=replay).run()
     return out
 
 
@@ -99,10 +101,11 @@ def _halves(requests: Sequence[tuple[Point, int]]) -> list[bool]:
 class Backend:
     """Simulates requests (see module docstring)."""
 
-    def __init__(self, runs: Sequence[GapRun], *, executor: Executor | None = None) -> None:
+    def __init__(self, runs: Sequence[GapRun], *, executor: Executor | None = None, replay: bool = False) -> None:
+        """``replay``: each run is driven by its recorded controller output (every run must have one)."""
         self.runs = list(runs)
-        self.executor = executor
-        self._inputs = [(r.controller, r.r, r.noise) for r in self.runs]
+        self.executor, self.replay = executor, replay
+        self._inputs = [(r.controller, r.r, r.u if replay else r.noise) for r in self.runs]
 
     def __call__(self, requests: Sequence[tuple[Point, int]]) -> list[Array]:
         """x_k [in] for each request, in order. With an executor, half the requests (:func:`_halves`) are
@@ -113,13 +116,14 @@ class Backend:
         if all(away) or not any(away):  # each run asked once, all odd or all even: halve the list instead
             away = [k % 2 == 1 for k in range(len(requests))]
         there = [q for q, a in zip(requests, away) if a]
-        pending = self.executor.submit(_positions, [pt for pt, _ in there], [i for _, i in there], self._inputs)
+        pending = self.executor.submit(_positions, [pt for pt, _ in there], [i for _, i in there], self._inputs,
+                                       self.replay)
         here = iter(self._here([q for q, a in zip(requests, away) if not a]))
         done = iter(pending.result())
         return [next(done) if a else next(here) for a in away]
 
     def _here(self, requests: Sequence[tuple[Point, int]]) -> list[Array]:
-        return _positions([pt for pt, _ in requests], [i for _, i in requests], self._inputs)
+        return _positions([pt for pt, _ in requests], [i for _, i in requests], self._inputs, self.replay)
 
     def all_runs(self, points: Sequence[Point]) -> list[list[Array]]:
         """x for every point on every run: ``result[p][i]``."""

@@ -7,7 +7,6 @@ and how far it shrinks once that effect is added.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
@@ -22,51 +21,26 @@ from grader.gap import baseline as baseline_mod
 from grader.gap import build, evidence
 from grader.gap import noise as noise_mod
 from grader.gap import quantization as quant_mod
-from grader.gap import spool
+from grader.gap import replay, spool
 from grader.gap.backend import Backend, Point, worker
 from grader.gap.candidates import LEAST_LIMIT, NONE, NOT_FROM_RUNS, Candidate, make_candidates, saturation_can_act
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
-from grader.gap.lm import sumsq
 from grader.gap.objective import RunObjective, objective
 from grader.gap.runs import GapRun, check_gains, current_demand, cut_note, prepare_runs, start_offset_note
 from grader.gap.schema import Candidate as SchemaCandidate
-from grader.gap.schema import Diagnosis, Verdict
-from grader.gap.search import SearchResult, refit, search, second_effect
+from grader.gap.schema import Diagnosis, ReplayInfo, Verdict
+from grader.gap.pairs import NONE_GAP, Second, beyond_none, fit_nrmse, pick_second, scored_of
+from grader.gap.search import SearchResult, search
 from grader.gap.segments import Segment, segments_of
 from grader.gap.spread import spread
 from grader.gap.separating import separating_test
-from grader.model.effects import EFFECTS
-from grader.gap.verdict import Ranking, Scored, decide, fit_gain, lookalikes, rank, scores
+from grader.gap.verdict import Ranking, Scored, explaining, rank
 
 Array = NDArray[np.float64]
 #: A verdict whose fit leaves more than this many times the floor's mean square (the reading noise's and what the
 #: noise makes the verdict's model do, :mod:`grader.gap.spread`) searches a second effect (``second=None``).
 RESIDUAL_RATIO = 1.0
-#: A second effect must lower the held-out score by SECOND_REL_GAIN and the all-runs fit's mean square by
-#: SECOND_GAIN times that floor, and act at SECOND_STRENGTH of its realistic range's top or more (a deadband of
-#: 0.03 mA that only lets the fit follow the noise's walk through a backlash names nothing). With every verdict
-#: searched for a pair on benchmark seed 300 (250 datasets with one effect or none, 60 with two), this bar and
-#: RESIDUAL_RATIO named 3 more pairs than 0.5 and 1.5 and no second effect on a single-effect dataset.
-SECOND_REL_GAIN, SECOND_GAIN, SECOND_STRENGTH = 0.10, 0.25, 0.06
-#: A ``none`` verdict whose linear model leaves this many times the noise's mean square searches a pair.
-NONE_GAP = 4.0
-
-
-@dataclass(frozen=True)
-class _Second:
-    """A second effect on top of the verdict: its fit, report entry and scores, and the additions the data cannot
-    tell apart from it (each effect's name and the scores of its pair)."""
-
-    state: FitState
-    candidate: SchemaCandidate
-    scored: Scored
-    lookalikes: tuple[tuple[str, Scored], ...]
-
-    @property
-    def alike(self) -> list[str]:
-        """The lookalikes' names."""
-        return [name for name, _ in self.lookalikes]
 
 
 @dataclass(frozen=True)
@@ -96,138 +70,13 @@ def _model_y(state: FitState, runs: Sequence[GapRun], base: baseline_mod.Baselin
     return Backend(runs).all_runs([state.candidate.point(base.params, state.theta)])[0]
 
 
-def _fit_nrmse(state: FitState, lengths: Sequence[int]) -> Array:
-    """Per-run NRMSE of an all-runs fit (the norm of each run's part of its residual)."""
-    ends = np.cumsum(lengths)
-    return np.array([math.sqrt(sumsq(state.res[e - n:e])) for n, e in zip(lengths, ends)])
-
-
-def _scored(found: SearchResult) -> list[Scored]:
-    return [Scored(s.candidate.effect, cv.heldout, _fit_nrmse(s, found.lengths),
-                   0 if s.candidate.effect == NONE else max(1, len(s.candidate.params)), s.candidate.strength(s.theta))
-            for s, cv in zip(found.states, found.cvs)]
-
-
-def _significant(cand: SchemaCandidate, effect: str) -> bool:
-    """Whether ``effect``'s fitted parameter in ``cand`` is clearly away from "no effect" (95 % interval)."""
-    spec = EFFECTS[effect]
-    for p in spec.params[:1]:
-        v = cand.params.get(f"{effect}.{p.name}") or cand.params.get(p.name)
-        if v is None or v.interval is None:
-            return False
-        return v.interval[1] < p.hi if p.name == "i_max" else v.interval[0] > 0
-    return True
-
-
-def _second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, others: Sequence[Candidate],
-            floor_nrmse: Array, before: CrossValidation, executor: Executor | None,
-            first_scored: Scored) -> tuple[_Second | None, tuple[SearchResult, Scored] | None]:
-    """(the best second effect on top of ``first``, ``first`` refitted to a better optimum with its scores, or None
-    for each).
-
-    The second effect: the best addition if it explains clearly more than ``first`` alone (beyond the
-    floor ``first`` leaves, by :data:`SECOND_GAIN`), else None; an addition whose parameter's 95 % interval
-    reaches "no effect" is no second effect (it only moved the first effect's optimum). ``first`` alone is
-    refitted from the pair search's start; where its score from the first search, ``first_scored``, is better,
-    that is the one to beat (a refit whose folds fell into worse optima let a pair through that predicted the
-    left-out runs worse than the verdict alone). The pick must also beat ``first`` alone refitted from where the
-    pick ended, where that refit reached a better optimum (:func:`_better_alone`): an addition that only led the
-    first effect out of a poorer optimum is no second effect. That refit is returned where it is also better than
-    ``first_scored``: the verdict's own fit is then that one."""
-    found = second_effect(objs, base.params, first, others, executor=executor,
-                          keep=lambda ends, lengths: _could_pass(ends, lengths, floor_nrmse, first_scored))
-    scored = _scored(found)
-    if scores([first_scored])[0] < scores([scored[-1]])[0]:
-        scored[-1] = first_scored
-    sc = scores(scored)
-    runs = [o.run for o in objs]
-    built = [build.candidate(st, cv, before, float(s), runs, found.lengths, base)
-             for st, cv, s in zip(found.states, found.cvs, sc)]
-    eligible = [i for i, st in enumerate(found.states[:-1]) if _significant(built[i], st.candidate.names[-1])
-                and st.candidate.strength(st.theta) >= SECOND_STRENGTH]
-    eligible.append(len(scored) - 1)
-    options = [scored[i] for i in eligible]
-    ref = len(eligible) - 1
-    pick, _, _ = decide(options, floor_nrmse, reference=ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
-    if pick == ref:
-        return None, None
-    refitted = _alone_from(objs, base, first, found.states[eligible[pick]], executor)
-    alone = _scored(refitted)[0]
-    better = (refitted, alone) if _better_alone(alone, first_scored) else None
-    if _better_alone(alone, options[ref]):
-        options[ref] = alone
-        pick, _, _ = decide(options, floor_nrmse, reference=ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
-        if pick == ref:
-            return None, better
-    alike = lookalikes(options, floor_nrmse, pick, ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
-    k = eligible[pick]
-    return _Second(found.states[k], built[k], scored[k],
-                   tuple((found.states[eligible[i]].candidate.names[-1], options[i]) for i in alike)), better
-
-
-def _better_alone(alone: Scored, bar: Scored) -> bool:
-    """Whether the first effect refitted from a pair's end, ``alone``, replaces ``bar`` as what the pair must beat:
-    its effect acts (:data:`grader.gap.verdict.ACTING`), its all-runs fit reached a better optimum (a lower mean
-    square) and it scores better held out. A refit that ended in a poorer optimum (run A's 0289: a hysteresis
-    refitted from its pair with a spool lag fitted all runs 50 times worse) only has folds that happened to predict
-    the left-out runs better."""
-    return bool(alone.acts and alone.fit_ms < bar.fit_ms and scores([alone])[0] < scores([bar])[0])
-
-
-def _alone_from(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, pair: FitState,
-                executor: Executor | None) -> SearchResult:
-    """``first`` alone refitted from where ``pair`` ended (first's own coordinates of the pair's θ)."""
-    return refit(objs, base.params, replace(first, theta=np.array(pair.theta[:first.theta.size])), executor=executor)
-
-
-def _could_pass(ends: Sequence[FitState], lengths: Sequence[int], floor_nrmse: Array,
-                first_scored: Scored) -> list[bool]:
-    """Which fits of a second-effect search can still pass :data:`SECOND_GAIN`'s bar on the all-runs fit, which
-    needs no cross-validation: the first alone (last) always; an addition only where it lowers the mean square of
-    one of the first's two fits (this search's and ``first_scored``'s, whichever :func:`_second` ends up
-    comparing with) by more than SECOND_GAIN times the floor's. The others could not be picked; their
-    cross-validation, about a third of the search, is skipped."""
-    w = np.ones(floor_nrmse.size)
-    refs = (_fit_nrmse(ends[-1], lengths), first_scored.fit)
-    return [k == len(ends) - 1 or any(fit_gain(r, _fit_nrmse(s, lengths), floor_nrmse, w, SECOND_GAIN) > 1.0
-                                      for r in refs)
-            for k, s in enumerate(ends)]
-
-
-def _pair_beyond_none(objs: Sequence[RunObjective], base: baseline_mod.Baseline, found: SearchResult, rk: Ranking,
-                      candidates: Sequence[Candidate], noise_nrmse: Array, sigma: float, before: CrossValidation,
-                      executor: Executor | None) -> tuple[Ranking, _Second | None]:
-    """No single effect explains the gap, yet the linear model leaves NONE_GAP times the noise's mean square
-    (two effects that each alone fit no better, as a deadband beside a backlash): the effect that fits best
-    with each other effect on top. A pair that explains clearly more than its first effect and than ``none``
-    makes that effect the verdict (margin 0, confidence 0: the runs do not name it alone)."""
-    names = [s.candidate.effect for s in found.states]
-    scored = _scored(found)
-    effects = [i for i, n in enumerate(names) if n != NONE and scored[i].acts]  # one that does not act is none
-    if not effects:
-        return rk, None
-    k = min(effects, key=lambda i: found.states[i].cost)
-    first = found.states[k]
-    floor = np.sqrt(noise_nrmse**2 + spread(objs, first.candidate.point(base.params, first.theta), sigma))
-    others = [c for c in candidates if c.effect not in (NONE, names[k], *NOT_FROM_RUNS)]
-    extra, _ = _second(objs, base, first, others, floor, before, executor, scored[k])
-    if extra is None:
-        return rk, None
-    none = scored[names.index(NONE)]
-    if decide([none, extra.scored], noise_nrmse)[0] != 1:
-        return rk, None
-    order = [k, *(i for i in rk.order if i != k)]
-    alike = tuple((n, s) for n, s in extra.lookalikes if decide([none, s], noise_nrmse)[0] == 1)  # the same bar
-    return (replace(rk, order=order, verdict=k, runner_up=names.index(NONE), margin=0.0, confidence=0.0, ties=[]),
-            replace(extra, lookalikes=alike))
-
-
 def _verdict(rk: Ranking, names: list[str]) -> Verdict:
     v = names[rk.verdict]
     ties = [names[i] for i in rk.ties]
     if v == NONE:
         text = "no candidate effect explains clearly more than the noise"
-    elif any(rk.scores[i] < rk.scores[rk.verdict] for i in rk.ties):  # kept over a lookalike (a second-order spool)
+    elif any(rk.scores[i] < rk.scores[rk.verdict] for i in [*rk.ties, *([] if rk.runner_up is None else [rk.runner_up])]):
+        # kept over a lookalike (a second-order spool), or chosen over it by its fit or the replayed runs
         text = f"{v} explains the gap as well as any candidate"
     else:
         text = f"{v} explains the gap best"
@@ -248,7 +97,7 @@ def _second_order_spool(objs: Sequence[RunObjective], base: baseline_mod.Baselin
     (:mod:`grader.gap.spool`); otherwise everything is returned unchanged."""
     k = [s.candidate.effect for s in found.states].index(spool.SPOOL)
     alt = spool.fit_against_delay(objs, base.params, found.states[rk.verdict], found.states[k], executor=executor)
-    s_alt = _scored(alt)[0]
+    s_alt = scored_of(alt)[0]
     if s_alt.fit_ms >= scored[k].fit_ms:
         return found, scored, built, rk
     return _replaced(found, scored, built, rk.verdict, alt, s_alt, noise_nrmse, before, objs, base)
@@ -269,44 +118,85 @@ def _replaced(found: SearchResult, scored: list[Scored], built: list[SchemaCandi
     return replace(found, states=states, cvs=cvs), scored, [*built[:k], entry, *built[k + 1:]], rk
 
 
+def _replayed(objs: Sequence[RunObjective], base: baseline_mod.Baseline, lag: SearchResult, found: SearchResult,
+              scored: list[Scored], built: list[SchemaCandidate], rk: Ranking, told: list[int], noise_nrmse: Array,
+              before: CrossValidation, sigma: float, executor: Executor | None
+              ) -> tuple[SearchResult, list[Scored], list[SchemaCandidate], Ranking, replay.Replay, str]:
+    """The candidates ``told`` (the verdict, its ties and the other effects that explain clearly more than ``none``)
+    compared on the replayed runs (:mod:`grader.gap.replay`), a spool in both its forms where ``found`` holds the
+    second-order one and ``lag`` the first-order lag; where the lag's form wins the verdict, its fit is restored.
+    Returns the search, scores, report entries and ranking, the replay and why."""
+    names = [s.candidate.effect for s in found.states]
+    forms = [(i, found.states[i]) for i in told]
+    k = names.index(spool.SPOOL) if spool.SPOOL in names else -1
+    if k in told and lag.states[k] is not found.states[k]:
+        forms.append((k, lag.states[k]))
+    runs = [o.run for o in objs]
+    rp = replay.compare(runs, base.params, [s for _, s in forms], [i for i, _ in forms], sigma, executor=executor)
+    rk, why = replay.ranking(rk, names, rp)
+    if rk.verdict == k and forms[rp.form[rp.indices.index(k)]][1] is lag.states[k]:
+        ties = rk.ties
+        alt = SearchResult([lag.states[k]], [lag.cvs[k]], lag.lengths)
+        found, scored, built, rk = _replaced(found, scored, built, k, alt, scored_of(alt)[0], noise_nrmse, before, objs,
+                                             base)
+        rk = replace(rk, ties=ties)
+    return found, scored, built, rk, rp, why
+
+
 def _needs_second(state: FitState, lengths: Sequence[int], floor_nrmse: Array) -> bool:
     """Whether the verdict's all-runs fit leaves a residual above the floor (mean square over RESIDUAL_RATIO
     times the floor's): then a pair of effects is searched."""
-    return float(np.mean(_fit_nrmse(state, lengths) ** 2)) > RESIDUAL_RATIO * float(np.mean(floor_nrmse**2))
+    return float(np.mean(fit_nrmse(state, lengths) ** 2)) > RESIDUAL_RATIO * float(np.mean(floor_nrmse**2))
 
 
 def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, candidates: Sequence[Candidate],
                   noise_nrmse: Array, sigma: float, fr: evidence.Friction | None, *, second: bool | None,
-                  parallel: bool) -> tuple[list[SchemaCandidate], list[Array], Verdict]:
-    """Search, rank (the friction test breaking a Coulomb tie), optionally add a second effect:
-    (candidates best first, augmented model per run, verdict); ``sigma`` [in] is the reading noise."""
+                  parallel: bool) -> tuple[list[SchemaCandidate], list[Array], Verdict, list[ReplayInfo]]:
+    """Search, rank (the friction test, or else the replayed runs, breaking a tie), optionally add a second effect:
+    (candidates best first, augmented model per run, verdict, the replay); ``sigma`` [in] is the reading noise."""
     runs = [o.run for o in objs]
     with worker(parallel) as executor:
         found = search(objs, base.params, candidates, executor=executor)
         names = [s.candidate.effect for s in found.states]
-        scored = _scored(found)
+        scored = scored_of(found)
         rk = rank(scored, noise_nrmse)
         before = found.cvs[names.index(NONE)]
         built = [build.candidate(st, cv, before, float(sc), runs, found.lengths, base)
                  for st, cv, sc in zip(found.states, found.cvs, rk.scores)]
         rk, why = evidence.coulomb_tie(rk, names, built, fr)
+        lag = found
         if names[rk.verdict] == spool.DELAY and spool.SPOOL in names:
             found, scored, built, rk = _second_order_spool(objs, base, found, scored, built, rk, noise_nrmse, before,
                                                            executor)
+        rp = None
+        told = [rk.verdict, *rk.ties, *(i for i in explaining(scored, noise_nrmse) if i not in (rk.verdict, *rk.ties))]
+        if names[rk.verdict] != NONE and len(told) > 1 and not why and replay.replayable(runs):
+            found, scored, built, rk, rp, why = _replayed(objs, base, lag, found, scored, built, rk, told, noise_nrmse,
+                                                          before, sigma, executor)
         extra, alone = None, True
         if names[rk.verdict] != NONE and second is not False:
             first = found.states[rk.verdict]
             floor = np.sqrt(noise_nrmse**2 + spread(objs, first.candidate.point(base.params, first.theta), sigma))
             if second or _needs_second(first, found.lengths, floor):
                 others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict], *NOT_FROM_RUNS)]
-                extra, better = _second(objs, base, first, others, floor, before, executor, scored[rk.verdict])
-                if better is not None and not why:  # the verdict's own fit: the better optimum its pair search
-                    # led to (a tie the friction test broke keeps its ranking)
+                extra, better = pick_second(objs, base, first, others, floor, before, executor, scored[rk.verdict])
+                if better is not None and (rp is not None or not why):  # the verdict's own fit: the better
+                    # optimum its pair search led to (a tie the friction test broke keeps its ranking; the ties the
+                    # replay told apart stay apart)
                     found, scored, built, rk = _replaced(found, scored, built, rk.verdict, *better, noise_nrmse,
                                                          before, objs, base)
+                    rk = rk if rp is None else replace(rk, ties=rp.kept(rk.verdict, rk.ties))
         elif second is not False and _needs_second(found.states[rk.verdict], found.lengths, np.sqrt(NONE_GAP) * noise_nrmse):
-            rk, extra = _pair_beyond_none(objs, base, found, rk, candidates, noise_nrmse, sigma, before, executor)
+            rk, extra = beyond_none(objs, base, found, rk, candidates, noise_nrmse, sigma, before, executor)
             alone = extra is None
+        replays, why2 = [] if rp is None else [replay.info(rp, names, "verdict")], ""
+        if extra is not None and (extra.lookalikes or extra.rivals) and replay.replayable(runs):
+            alts = [(extra.state.candidate.names[-1], extra.scored, extra.state, extra.candidate), *extra.lookalikes,
+                    *extra.rivals]
+            v, kept, rp2, why2 = replay.second(runs, base.params, [(a[0], a[2]) for a in alts],
+                                               range(1, 1 + len(extra.lookalikes)), sigma, executor=executor)
+            extra = Second(alts[v][2], alts[v][3], alts[v][1], tuple(alts[i] for i in kept))
+            replays.append(replay.info(rp2, [a[0] for a in alts], "second_effect"))
     cands = [built[i] for i in rk.order]
     y_aug = _model_y(found.states[rk.verdict], runs, base)
     verdict = _verdict(rk, names)
@@ -323,10 +213,11 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
         test = separating_test(added, extra.alike)
         if extra.alike:
             text += f"; the data cannot tell {added} apart from {', '.join(extra.alike)}: {test} would separate them"
+        text += f"; {why2}" if why2 else ""
         verdict = verdict.model_copy(update={
             "second_effect": added, "shares": {verdict.effect: share, added: build.r6(1.0 - share)},
             "explanation": text, "second_indistinguishable_from": extra.alike, "second_separating_test": test})
-    return cands, y_aug, verdict
+    return cands, y_aug, verdict, replays
 
 
 def _notes(ds: Dataset, runs: Sequence[GapRun], quant: quant_mod.Quantization | None, noise: noise_mod.Noise,
@@ -367,7 +258,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     objs = [objective(r, noise.sigma) for r in runs]
     own = spread(objs, Point(base.params), noise.sigma)
     objs = [replace(o, weight=float(np.sqrt(f**2 / (f**2 + s)))) for o, f, s in zip(objs, noise_nrmse, own)]
-    cands, y_aug, verdict = _which_effect(objs, base, make_candidates(base.params, effects, demand=demand), noise_nrmse,
+    cands, y_aug, verdict, replayed = _which_effect(objs, base, make_candidates(base.params, effects, demand=demand), noise_nrmse,
                                           noise.sigma, fr,
                                           second=second, parallel=parallel)
     lg = None
@@ -382,7 +273,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
         noise=build.noise_floor(noise), gap=gap,
         readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit),
         candidates=cands, verdict=verdict, quantization=build.quantization_info(quant),
-        static_evidence={} if fr is None else fr.values(), loop_gain=lg,
+        static_evidence={} if fr is None else fr.values(), loop_gain=lg, replay=replayed,
         notes=[*set_aside, *base.notes, *_notes(ds, runs, quant, noise, implied, demand)],
     )
     return Analysis(diag, runs, segs, y_lin, y_aug)

@@ -155,6 +155,23 @@ class LoopGainInfo(_Frozen):
                           "1.5 lbf*s/in). None: no such rig")
 
 
+class ReplayInfo(_Frozen):
+    """Effects the closed-loop runs could not tell apart, fitted again to the runs replayed through the controller
+    output the rig recorded (datasets with a ``u`` column)."""
+
+    of: Literal["verdict", "second_effect"] = Field(description="what was replayed: the verdict and the candidates "
+                                                                "tied with it, or the second effect and its lookalikes "
+                                                                "(each on top of the verdict)")
+    excess: dict[str, float] = Field(description="each candidate's replayed fit: its sum of squares above the best "
+                                                 "one's, in units of the best one's mean square per sample (2·ln of a "
+                                                 "likelihood ratio on white noise; 0 = the best)")
+    evidence: float = Field(description="the difference in excess that tells two candidates apart")
+    mean_square: float = Field(description="the best replayed fit's mean square per sample, in units of the reading "
+                                           "noise's")
+    decides: bool = Field(description="the best replayed fit is good enough to decide (mean_square at most 1.5); "
+                                      "candidates `evidence` or more apart in excess are then told apart")
+
+
 class Diagnosis(_Frozen):
     schema_: str = Field(SCHEMA, alias="schema")
     dataset: str
@@ -172,6 +189,8 @@ class Diagnosis(_Frozen):
         default_factory=dict, description="effect parameters the static tests measure (friction test: Fc and B)")
     loop_gain: LoopGainInfo | None = Field(None, description="the flow test's Kq against the runs' loop gain "
                                                              "(datasets without a friction test)")
+    replay: list[ReplayInfo] = Field(default_factory=list, description="lookalikes compared on the replayed runs "
+                                                                       "(empty: none, or no recorded controller output)")
     notes: list[str]
 
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)

@@ -135,6 +135,7 @@ def _which(d: Diagnosis, best: Candidate) -> str:
         elif "friction test" in v.explanation and v.effect != "viscous_friction":  # a Coulomb tie broken
             why = next(part for part in v.explanation.split("; ") if "friction test" in part)
             text += f" The runs alone rank it with {runner}; {why}."
+        text += _replayed(d, "verdict", v.effect)
     if v.indistinguishable_from:
         others = ", ".join(_with_params(d, e) for e in v.indistinguishable_from)
         text += f" The data cannot tell it apart from: {others}; {v.separating_test} would separate them."
@@ -148,9 +149,32 @@ def _which(d: Diagnosis, best: Candidate) -> str:
             others = ", ".join(effect_name(e) for e in v.second_indistinguishable_from)
             text += (f" The data cannot tell {effect_name(v.second_effect)} apart from: {others}; "
                      f"{v.second_separating_test} would separate them.")
+        text += _replayed(d, "second_effect", v.second_effect)
     elif v.second_effect == "sensor_quantization":
         text += f" {_quantization(d)}"
     return text
+
+
+def by_text(x: float) -> str:
+    """A replay's excess (2·ln likelihood) as text: three digits, or a whole number with thousands separators from
+    1,000 up."""
+    return f"{x:,.0f}" if abs(x) >= 1000 else f"{x:.3g}"
+
+
+def _replayed(d: Diagnosis, of: str, effect: str) -> str:
+    """The lookalikes the replayed runs told apart from ``effect`` (the verdict or the second effect), as a sentence
+    ('' where none was, or the replay decided nothing)."""
+    r = next((r for r in d.replay if r.of == of and r.decides and effect in r.excess), None)
+    if r is None:
+        return ""
+    apart = [(e, x - r.excess[effect]) for e, x in r.excess.items() if e != effect and x - r.excess[effect] >= r.evidence]
+    if not apart:
+        return ""
+    apart.sort(key=lambda a: a[1])
+    worse = ", ".join(f"{effect_name(e)} (by {by_text(x)} in 2·ln likelihood)" for e, x in apart[:2])
+    more = f" and {len(apart) - 2} more" if len(apart) > 2 else ""
+    return (f" Replayed through the controller output the rig recorded, the runs follow {effect_name(effect)} better "
+            f"than {worse}{more}.")
 
 
 def _with_params(d: Diagnosis, effect: str) -> str:

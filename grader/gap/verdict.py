@@ -128,18 +128,32 @@ def decide(cands: Sequence[Scored], noise_nrmse: Array, weights: Array | None = 
     than the reference is no candidate for the verdict, nor is one fitted at no strength (:data:`ACTING`)."""
     w = np.ones(noise_nrmse.size) if weights is None else weights
     s = scores(cands, w)
-    i_none = next(i for i, c in enumerate(cands) if c.effect == NONE) if reference is None else reference
-    acting = [i for i in range(len(cands)) if i != i_none and cands[i].acts]
-    if not acting:  # no effect, or every one fitted at no strength: each is the reference itself
+    i_none, e = _evidences(cands, noise_nrmse, w, reference, gain, rel_gain)
+    if not e:  # no effect, or every one fitted at no strength: each is the reference itself
         return i_none, i_none, 0.0
-    e = {i: evidence(cands[i_none], cands[i], noise_nrmse, w, gain, rel_gain) for i in acting}
-    ok = [i for i in acting if e[i] > 1.0]
+    ok = [i for i in e if e[i] > 1.0]
     if not ok:
-        closest = max(acting, key=lambda i: e[i])
+        closest = max(e, key=lambda i: e[i])
         return i_none, closest, e[closest]
     top = min(ok, key=lambda i: s[i])
     best = min((i for i in ok if np.log(s[i] / s[top]) < CLOSE), key=lambda i: _ms(cands[i].fit, w))
     return best, best, e[best]
+
+
+def _evidences(cands: Sequence[Scored], noise_nrmse: Array, w: Array, reference: int | None, gain: float,
+               rel_gain: float) -> tuple[int, dict[int, float]]:
+    """The reference's index (default ``none``'s) and E of each effect that acts against it."""
+    i_none = next(i for i, c in enumerate(cands) if c.effect == NONE) if reference is None else reference
+    acting = [i for i in range(len(cands)) if i != i_none and cands[i].acts]
+    return i_none, {i: evidence(cands[i_none], cands[i], noise_nrmse, w, gain, rel_gain) for i in acting}
+
+
+def explaining(cands: Sequence[Scored], noise_nrmse: Array, *, reference: int | None = None, gain: float = NOISE_GAIN,
+               rel_gain: float = REL_GAIN) -> list[int]:
+    """The effects that explain clearly more than the reference (E > 1, in :func:`decide`'s units): those
+    :func:`decide` chooses among."""
+    _, e = _evidences(cands, noise_nrmse, np.ones(noise_nrmse.size), reference, gain, rel_gain)
+    return [i for i in e if e[i] > 1.0]
 
 
 def lookalikes(cands: Sequence[Scored], noise_nrmse: Array, pick: int, reference: int, *, gain: float = NOISE_GAIN,

@@ -6,6 +6,7 @@ diagnosis fitter. Per run and per sample instant t_k = k·T::
 
     ADC: y_k = x_k + noise_k, rounded to the ADC's step when quantised
     controller: e_k = k_fb·(r_k − y_k); u_k = Kp·e_k + Ki·T·Σe + Kd·(e_k − e_{k−1})/T, clipped to ±10 V (DAC)
+    (a replayed run: u_k = noise_k, the controller output a rig recorded [V], and y_k = x_k)
     hold: u held over [t_k, t_k+1), delayed by lag whole samples and a fractional phase
     amplifier: i = clip(Kamp·u, ±i_lim) -> backlash (valve_hysteresis) -> plant
 
@@ -33,21 +34,22 @@ from grader.model.rig_setup import DAC_LIMIT, RigArrays
 Array = NDArray[np.float64]
 NS, NI = plant.N_STATES, plant.N_INPUTS
 # controller / actuator / sensor row
-T_, KP, KI_T, KD_T, K_FB, KAMP, I_LIM, HALF_HYST, LSB, CPI, LAG, PHASE = range(12)
-N_CTL = 12
+T_, KP, KI_T, KD_T, K_FB, KAMP, I_LIM, HALF_HYST, LSB, CPI, LAG, PHASE, REPLAY = range(13)
+N_CTL = 13
 TAYLOR_TERMS = 16  # for a balanced norm <= 0.5: truncation below 1e-17
 MAX_EVENTS = 16  # per substep; beyond, friction just opposes the velocity (chatter)
 EVENT_ITERATIONS = 60
 
 
-def pack_controls(a: RigArrays) -> Array:
-    """Per-run controller, actuator and sensor rows (n, N_CTL)."""
+def pack_controls(a: RigArrays, replay: NDArray[np.bool_] | None = None) -> Array:
+    """Per-run controller, actuator and sensor rows (n, N_CTL); ``replay`` marks the runs driven by a recorded
+    controller output instead of the controller."""
     lag = np.floor(a.delay / a.T + 1e-9)
     phase = a.delay - lag * a.T
     phase[phase < 1e-9 * a.T] = 0.0
     lsb = np.where(a.lsb > 0, 1.0, 0.0)
     cols = (np.full(a.n, a.T), a.Kp, a.Ki_T, a.Kd_T, a.k_fb, a.Kamp, a.i_lim, a.half_hyst, lsb, a.counts_per_in,
-            lag, phase)
+            lag, phase, np.zeros(a.n) if replay is None else np.asarray(replay, dtype=np.float64))
     return np.ascontiguousarray(np.stack(cols, axis=1), dtype=np.float64)
 
 
@@ -325,15 +327,20 @@ def _loop(par, ctl, r, noise, K, lin, ev, n_a, n_b, hs, mats, phis, gams, Y, U, 
     z[0] = r[0]
     mode = plant.initial_mode(par)
     integ = e_prev = back = 0.0
+    replay = ctl[REPLAY] > 0.0
     for k in range(K):
         x = z[0]
-        y = x + noise[k]
-        if ctl[LSB] > 0.0:
-            y = np.rint(y * ctl[CPI]) / ctl[CPI]
-        e = ctl[K_FB] * (r[k] - y)
-        integ += e
-        u = min(max(ctl[KP] * e + ctl[KI_T] * integ + ctl[KD_T] * (e - e_prev), -DAC_LIMIT), DAC_LIMIT)
-        Y[k], U[k], X[k], e_prev = y, u, x, e
+        if replay:  # the recorded controller output drives the plant
+            y, u = x, min(max(noise[k], -DAC_LIMIT), DAC_LIMIT)
+        else:
+            y = x + noise[k]
+            if ctl[LSB] > 0.0:
+                y = np.rint(y * ctl[CPI]) / ctl[CPI]
+            e = ctl[K_FB] * (r[k] - y)
+            integ += e
+            u = min(max(ctl[KP] * e + ctl[KI_T] * integ + ctl[KD_T] * (e - e_prev), -DAC_LIMIT), DAC_LIMIT)
+            e_prev = e
+        Y[k], U[k], X[k] = y, u, x
         for piece in range(2):
             n = n_a if piece == 0 else n_b
             if n == 0:
@@ -375,13 +382,15 @@ def stepped(a: RigArrays) -> NDArray[np.bool_]:
     return np.array([not is_linear(p) or has_events(p) for p in plant.pack(a)], dtype=bool)
 
 
-def run(a: RigArrays, r: Array, noise: Array, K: NDArray[np.int64], m: NDArray[np.int64]) -> tuple[Array, Array, Array]:
+def run(a: RigArrays, r: Array, noise: Array, K: NDArray[np.int64], m: NDArray[np.int64],
+        replay: NDArray[np.bool_] | None = None) -> tuple[Array, Array, Array]:
     """(Y, U, X), each (n, Kmax): measured y [in], u [V] and true x [in] of each run for commands
     ``r`` (n, Kmax) [in] and reading noise (n, Kmax) [in]; run j uses its first K[j] samples and
-    m[j] RK4 substeps per sample where the plant is not linear between events."""
+    m[j] RK4 substeps per sample where the plant is not linear between events. A run marked in ``replay`` is
+    driven by ``noise`` as its controller output [V] (recorded on a rig) instead of its controller."""
     n, k_max = r.shape
     Y, U, X = np.zeros((n, k_max)), np.zeros((n, k_max)), np.zeros((n, k_max))
-    _run_batch(plant.pack(a), pack_controls(a), np.ascontiguousarray(r, dtype=np.float64),
+    _run_batch(plant.pack(a), pack_controls(a, replay), np.ascontiguousarray(r, dtype=np.float64),
                np.ascontiguousarray(noise, dtype=np.float64), np.asarray(K, dtype=np.int64),
                np.asarray(m, dtype=np.int64), Y, U, X)
     return Y, U, X

@@ -42,12 +42,13 @@ MAX_SUBSTEPS = 2000
 
 
 def _engine_run(a: RigArrays, r_k: Array, noise: Array, K: NDArray[np.int64], substeps: int | None, *,
-                too_fast: str = "raise", max_substeps: int = MAX_SUBSTEPS) -> tuple[Array, Array, Array]:
+                too_fast: str = "raise", max_substeps: int = MAX_SUBSTEPS, replay: bool = False
+                ) -> tuple[Array, Array, Array]:
     """The compiled engine on padded per-run rows (imported here: numba loads on first use). A run whose
     cost grows with its fastest mode (:func:`grader.model.engine.stepped`) and whose fastest mode needs more than
     ``max_substeps`` per sample is an error (``too_fast="raise"``) or, for a fitter's trial model (``"nan"``),
     not simulated: its rows are NaN. A linear run without events takes one exact step per sample at any
-    stiffness."""
+    stiffness. With ``replay``, ``noise`` holds each run's recorded controller output [V], which drives it."""
     from grader.model import engine
 
     m = a.substeps() if substeps is None else np.full(a.n, substeps, dtype=np.int64)
@@ -59,7 +60,7 @@ def _engine_run(a: RigArrays, r_k: Array, noise: Array, K: NDArray[np.int64], su
         raise SimulationError(f"run {j}: the rig's fastest mode needs {int(m[j])} substeps per sample (more than "
                               f"{MAX_SUBSTEPS}); check its beta_over_Vt, Kce and the spool's tau")
     with np.errstate(all="ignore"):  # a wildly unstable trial model may overflow: its output says so
-        Y, U, X = engine.run(a, r_k, noise, np.where(fast, 0, K), np.where(fast, 1, m))
+        Y, U, X = engine.run(a, r_k, noise, np.where(fast, 0, K), np.where(fast, 1, m), np.full(a.n, replay))
     Y[fast], U[fast], X[fast] = np.nan, np.nan, np.nan
     return Y, U, X
 
@@ -141,22 +142,25 @@ class PositionBatch:
 
     a: RigArrays
     r: Array  # (n, Kmax) commands [in], padded with their last value
-    noise: Array  # (n, Kmax) reading noise [in]
+    noise: Array  # (n, Kmax) reading noise [in], or with replay the recorded controller output [V]
     K: NDArray[np.int64]  # samples of each run
     max_substeps: int = MAX_SUBSTEPS  # a run needing more RK4 substeps per sample is NaN
+    replay: bool = False  # the recorded controller output drives each run (no controller)
 
     def run(self) -> list[Array]:
         """Position x_k [in] of each run, on its own samples."""
-        _, _, X = _engine_run(self.a, self.r, self.noise, self.K, None, too_fast="nan", max_substeps=self.max_substeps)
+        _, _, X = _engine_run(self.a, self.r, self.noise, self.K, None, too_fast="nan", max_substeps=self.max_substeps,
+                              replay=self.replay)
         return [X[j, :k].copy() for j, k in enumerate(self.K)]
 
 
 def position_batch(params: Sequence[RigParams], controllers: Sequence[Controller], effects: Sequence[EffectSet],
                    commands: Sequence[Array], noise: Sequence[Array] | None = None, *,
-                   max_substeps: int = MAX_SUBSTEPS) -> PositionBatch:
+                   max_substeps: int = MAX_SUBSTEPS, replay: bool = False) -> PositionBatch:
     """Runs (params[j], controllers[j], effects[j]) for sampled commands ``commands[j]`` [in] (lengths
     may differ) whose controller reads x_k + ``noise[j][k]`` [in] (default 0); a run whose fastest mode
-    needs more than ``max_substeps`` RK4 substeps per sample comes back NaN."""
+    needs more than ``max_substeps`` RK4 substeps per sample comes back NaN. With ``replay``, ``noise[j]`` is
+    instead the controller output [V] a rig recorded, and it drives the run in place of the controller."""
     a = resolve(params, controllers, effects, n=len(commands))
     K = np.array([c.size for c in commands], dtype=np.int64)
     r, nz = np.zeros((a.n, int(K.max()))), np.zeros((a.n, int(K.max())))
@@ -164,7 +168,7 @@ def position_batch(params: Sequence[RigParams], controllers: Sequence[Controller
         r[j, :c.size], r[j, c.size:] = c, c[-1]
         if noise is not None:
             nz[j, :c.size] = noise[j]
-    return PositionBatch(a, r, nz, K, max_substeps)
+    return PositionBatch(a, r, nz, K, max_substeps, replay)
 
 
 def simulate_positions(params: Sequence[RigParams], controllers: Sequence[Controller], effects: Sequence[EffectSet],

@@ -71,3 +71,20 @@ def analysed(make: MakeDataset) -> Callable[..., object]:
         return cache[name]
 
     return run
+
+
+def _drop_u(folder: Path) -> Path:
+    """``folder``'s dataset with every run's u column (the recorded controller output) dropped, in place."""
+    import csv
+
+    for f in folder.glob("*.csv"):
+        rows = list(csv.reader(f.read_text(encoding="utf-8").splitlines()))
+        if rows and rows[0][-1].startswith("u "):
+            f.write_text("\n".join(",".join(r[:-1]) for r in rows) + "\n", encoding="utf-8")
+    return folder
+
+
+@pytest.fixture
+def without_u() -> Callable[[Path], Path]:
+    """Drops the u column of a dataset's runs (nothing can then be replayed)."""
+    return _drop_u

@@ -185,15 +185,28 @@ def test_a_valve_saturating_early_keeps_the_oscillations_stiffness(make: MakeDat
     assert lo <= 12.0 <= hi
 
 
-@pytest.mark.parametrize(("delay", "alike"), [(0.0006, ["valve_dynamics"]), (0.0015, [])])
-def test_a_second_effect_the_data_cannot_tell_from_another_is_reported_with_it(make: MakeDataset, delay: float,
-                                                                             alike: list[str]) -> None:
+@pytest.mark.parametrize(("delay", "replayed", "alike"), [(0.0006, False, ["valve_dynamics"]), (0.0006, True, []),
+                                                          (0.0015, False, [])])
+def test_a_second_effect_the_data_cannot_tell_from_another_is_reported_with_it(
+        make: MakeDataset, tmp_path: Path, without_u: Callable[[Path], Path], delay: float, replayed: bool,
+        alike: list[str]) -> None:
     """A delay beside a 1 mA deadband, with a spool lag among the candidates too: at 0.6 ms the lag on top of the
-    deadband does as well as the delay, and the verdict says so, with the test that would separate them; at 1.5 ms
-    the runs tell them apart."""
+    deadband does as well as the delay in the closed loop, and without the recorded controller output the verdict
+    says so, with the test that would separate them; replayed through it, the runs tell them apart. At 1.5 ms the
+    closed-loop runs tell them apart."""
     truth = {"valve_deadband": {"width": 1.0}, "sampling_delay": {"delay": delay}}
-    v = analyse(make(f"deadband_delay_{delay}", truth), effects=(*FEW, "valve_dynamics")).diagnosis.verdict
+    folder = make(f"deadband_delay_{delay}", truth)
+    if not replayed:
+        folder = without_u(Path(shutil.copytree(folder, tmp_path / folder.name)))
+    d = analyse(folder, effects=(*FEW, "valve_dynamics")).diagnosis
+    v = d.verdict
     assert (v.effect, v.second_effect) == ("valve_deadband", "sampling_delay")
     assert v.second_indistinguishable_from == alike
     assert (v.second_separating_test is not None) == bool(alike)
     assert ("faster sample rate" in v.explanation) == bool(alike)
+    second = [r for r in d.replay if r.of == "second_effect"]
+    if replayed:
+        assert second[0].excess["sampling_delay"] == 0.0 and second[0].excess["valve_dynamics"] >= second[0].evidence
+        assert "the runs tell sampling_delay apart from valve_dynamics" in v.explanation
+    else:
+        assert second == []

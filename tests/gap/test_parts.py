@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from grader.gap.candidates import combine, make_candidates
-from grader.gap.diagnose import SECOND_GAIN, SECOND_REL_GAIN, _could_pass
+from grader.gap.pairs import SECOND_GAIN, SECOND_REL_GAIN, could_pass
 from grader.gap.fit import FitState
 from grader.gap.noise import adc_step, estimate, reading_noise
 from grader.gap.runs import GapRun
@@ -166,7 +166,7 @@ def test_a_second_effect_left_out_of_cross_validation_could_not_have_been_picked
     first, added = cands["coulomb_friction"], combine(cands["coulomb_friction"], cands["valve_deadband"])
     ends = [FitState(c, (0,), np.zeros(c.n_theta), res=f.copy()) for c, f in ((added, combo), (first, refit))]
     earlier_scored = Scored("coulomb_friction", earlier, earlier, 1, 0.5)
-    keep = _could_pass(ends, [1] * 6, floor, earlier_scored)
+    keep = could_pass(ends, [1] * 6, floor, earlier_scored)
     assert keep[-1]
     perfect = Scored("coulomb_friction+valve_deadband", np.full(6, 1e-9), combo, 2, 0.5)  # an addition that acts
     for reference in (Scored("coulomb_friction", refit, refit, 1, 0.5), earlier_scored):
@@ -179,7 +179,7 @@ def test_a_pair_beyond_none_starts_from_an_effect_that_acts(monkeypatch: pytest.
     """With no single effect clearly better than ``none``, the pair search starts from the effect that fits all runs
     best; Coulomb friction fitted at Fc = 0 fits best here but is ``none`` itself, with nothing to add to, so the
     search starts from the deadband instead (a Coulomb level of 0.3 of its range's top acts, and is the start)."""
-    import grader.gap.diagnose as diag
+    import grader.gap.pairs as diag
     from grader.gap.baseline import Baseline
     from grader.gap.crossval import CrossValidation
     from grader.gap.search import SearchResult
@@ -199,9 +199,9 @@ def test_a_pair_beyond_none_starts_from_an_effect_that_acts(monkeypatch: pytest.
         firsts.append(first.candidate.effect)
         return None, None
 
-    monkeypatch.setattr(diag, "_second", second)
+    monkeypatch.setattr(diag, "pick_second", second)
     monkeypatch.setattr(diag, "spread", lambda objs, point, sigma: np.zeros(6))
     rk = Ranking([0, 1, 2], np.ones(3), 0, 1, 0.0, 1.0, [])
-    diag._pair_beyond_none([], Baseline(base, "test", "constructed"), found, rk, list(cands.values()), np.full(6, 0.01), 1e-4,
+    diag.beyond_none([], Baseline(base, "test", "constructed"), found, rk, list(cands.values()), np.full(6, 0.01), 1e-4,
                            cv, None)
     assert firsts == ["valve_deadband" if fc == 0.0 else "coulomb_friction"]

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from grader.gap import spool
+from grader.gap import pairs, spool
 from grader.gap.bench import make_case_dataset
 from grader.gap.candidates import Candidate, combine, make_candidates
 from grader.gap.diagnose import analyse
@@ -54,15 +55,24 @@ def test_a_kept_verdict_is_ranked_again_with_its_new_ties() -> None:
     assert kept.margin == 0.0 and kept.confidence == 0.0  # tied in every resample
 
 
-def test_a_second_order_spool_is_named_beside_the_delay_it_looks_like(tmp_path: Path) -> None:
-    """A 2.5 ms second-order spool (damping 0.7) on the default station, simulated by the solve_ivp path: it acts as
-    a 3.5 ms delay, and the verdict is the delay. The spool is listed as indistinguishable from it, with its
-    second-order fit, whose interval covers the truth (before, the first-order lag fitted clearly worse and the
-    delay stood alone)."""
+def test_a_second_order_spool_is_named_beside_the_delay_it_looks_like(tmp_path: Path,
+                                                                      without_u: Callable[[Path], Path]) -> None:
+    """A 2.5 ms second-order spool (damping 0.7) on the default station, simulated by the solve_ivp path: it acts on
+    the closed loop as a 3.5 ms delay. Without the controller output, the verdict is the delay and the spool is
+    listed as indistinguishable from it, with its second-order fit, whose interval covers the truth (before, the
+    first-order lag fitted clearly worse and the delay stood alone). Replayed through the recorded controller
+    output, the spool follows the runs far better than the delay and is named, in its second-order form."""
     truth = EffectSet({"valve_dynamics": {"tau": 0.0025, "order": 2.0, "zeta": 0.7}})
     folder = make_case_dataset(load_station("default"), truth, tmp_path / "spool", 5, friction_test=False)
     d = analyse(folder).diagnosis
-    assert d.verdict.effect == "sampling_delay"
+    assert (d.verdict.effect, d.verdict.runner_up, d.verdict.indistinguishable_from) == ("valve_dynamics",
+                                                                                         "sampling_delay", [])
+    assert d.replay[0].excess["sampling_delay"] > 10 * d.replay[0].evidence
+    fitted = d.candidates[0].params
+    assert fitted["order"].value == 2.0 and fitted["tau"].interval[0] <= 0.0025 <= fitted["tau"].interval[1]
+    assert "the runs follow valve dynamics better than sampling delay" in summary(d)
+    d = analyse(without_u(folder)).diagnosis
+    assert d.verdict.effect == "sampling_delay" and d.replay == []
     assert d.verdict.indistinguishable_from == ["valve_dynamics"]
     assert "valve_dynamics" in d.verdict.explanation and d.verdict.separating_test
     assert d.candidates[0].effect == "sampling_delay"  # the verdict first, with its own fit
@@ -107,7 +117,7 @@ def test_a_second_order_spool_that_fits_worse_than_the_lag_changes_nothing(monke
     found = SearchResult(states, [cv] * 3, [1] * 6)
     worse = FitState(spool.second_order(c["valve_dynamics"]), runs, np.append(lin, 0.2), np.full(6, 0.020))
     monkeypatch.setattr(spool, "fit_against_delay", lambda *args, **kwargs: SearchResult([worse], [cv], [1] * 6))
-    scored = diagnose._scored(found)
+    scored = pairs.scored_of(found)
     rk = rank(scored, NOISE)
     built: list = [object(), object(), object()]
     base = SimpleNamespace(params=load_station("default").params())

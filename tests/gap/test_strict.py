@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from dataclasses import replace
 from functools import cache
 from pathlib import Path
@@ -17,9 +18,10 @@ from grader.gap import search
 from grader.gap.bench import BenchConfig, Case, make_case_dataset
 from grader.gap.bench_report import render
 from grader.gap.bench_run import Task, tasks
-from grader.gap.diagnose import _better_alone, analyse
+from grader.gap.diagnose import analyse
 from grader.gap.evidence import Friction, viscous
 from grader.gap.noise import Noise
+from grader.gap.pairs import better_alone
 from grader.gap.quantization import assess
 from grader.gap.runs import GapRun
 from grader.gap.schema import Diagnosis, Verdict
@@ -218,16 +220,21 @@ def test_a_weak_second_effect_is_named_once_it_fits_clearly_better(tmp_path: Pat
 
 
 def test_a_fit_that_falls_off_the_instability_runs_cliff_starts_again_from_a_line_in_kce(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, without_u: Callable[[Path], Path]) -> None:
     """Benchmark case 192 of seed 300 (Coulomb friction of 1.3 lbf): the Coulomb fit matches the runs' first half
     second, but on the whole runs its instability oscillation dies out, more than ten times worse, where the
     objective is flat. Started again from a fine line in ln Kce it finds the valley and Coulomb friction is the
-    verdict; without that restart, it is not (it was a deadband)."""
+    verdict; without that restart, and without the controller output to replay, it is not (it was a deadband).
+    Replayed through the recorded controller output, even that poorer Coulomb fit follows the runs far better than
+    the deadband, which then is no verdict."""
     label, d = _seed_300_case(192, tmp_path / "with")
     assert label == "coulomb_friction"
     assert (d.verdict.effect, d.verdict.second_effect) == ("coulomb_friction", None)
     monkeypatch.setattr(search, "CLIFF", math.inf)
-    assert _seed_300_case(192, tmp_path / "without")[1].verdict.effect != "coulomb_friction"
+    _, folder = _seed_300_dataset(192, tmp_path / "without")
+    d = analyse(folder).diagnosis
+    assert d.verdict.effect == "coulomb_friction" and d.replay[0].excess["valve_deadband"] > 100 * d.replay[0].evidence
+    assert analyse(without_u(folder)).diagnosis.verdict.effect != "coulomb_friction"
 
 
 def test_a_pair_that_falls_off_the_cliff_is_named_once_started_again(tmp_path: Path) -> None:
@@ -245,7 +252,7 @@ def test_a_second_effect_that_only_led_the_first_to_a_better_optimum_is_not_name
     (fitted at the truth's parameters it costs a fifth as much), and a current limit on top led the pair to a better
     one. Coulomb friction alone, refitted from where that pair ended, predicts the left-out runs as well: no second
     effect, and the verdict's fit is that refit. Without that refit the current limit was named."""
-    from grader.gap import diagnose
+    from grader.gap import pairs
 
     label, folder = _seed_300_dataset(194, tmp_path)
     assert label == "coulomb_friction"
@@ -254,7 +261,7 @@ def test_a_second_effect_that_only_led_the_first_to_a_better_optimum_is_not_name
     # the verdict reports that better optimum: Fc 7.5 lbf (truth 7.0), where the first search had 8.0
     assert abs(_fc(d) - 7.0) < 0.6
     # no refit from the pair's end ever better: as before that refit
-    monkeypatch.setattr(diagnose, "_better_alone", lambda alone, bar: False)
+    monkeypatch.setattr(pairs, "better_alone", lambda alone, bar: False)
     d = analyse(folder).diagnosis
     assert d.verdict.second_effect == "valve_saturation" and _fc(d) > 7.9
 
@@ -275,7 +282,7 @@ def _alone(fit: float, heldout: float) -> Scored:
 ])
 def test_the_first_effect_refitted_from_a_pairs_end_replaces_the_bar_only_from_a_better_optimum(
         alone: Scored, bar: Scored, replaces: bool) -> None:
-    assert _better_alone(alone, bar) is replaces
+    assert better_alone(alone, bar) is replaces
 
 
 def test_a_refit_that_ended_in_a_poorer_optimum_does_not_reject_a_true_second_effect(tmp_path: Path) -> None:

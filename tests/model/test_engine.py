@@ -170,3 +170,19 @@ def test_the_engine_runs_as_plain_python_under_numba_disable_jit(p: RigParams) -
     y, _ = simulate_rig(p, Controller(25), t, np.where(t > 0.005, 0.1, 0.0), friction)
     assert np.abs(y).max() > 0.01  # the step moved the rig
     np.testing.assert_allclose(json.loads(done.stdout), y, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize(("effect", "controller", "tol"), CASES, ids=[c[0] for c in CASES])
+def test_a_run_replayed_through_its_own_controller_output_moves_as_it_did(p: RigParams, effect: str,
+                                                                         controller: Controller, tol: float) -> None:
+    """Driven by the controller output its closed loop recorded, a run repeats its positions bit for bit, whatever
+    controller it names (the replay reads none); with the output scaled, it does not."""
+    from grader.model.rig import position_batch
+
+    t, r = _step(p.sample_time)
+    effects = EffectSet.parse([effect])
+    y, u = simulate_rig(p, controller, t, r, effects)  # no reading noise: y is the position
+    again = position_batch([p], [Controller(1.0, Ki=3.0)], [effects], [r], [u], replay=True).run()[0]
+    assert np.array_equal(again, y)
+    scaled = position_batch([p], [controller], [effects], [r], [0.9 * u], replay=True).run()[0]
+    assert np.abs(scaled - y).max() > 1e-3  # [in]

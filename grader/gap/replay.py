@@ -1,0 +1,173 @@
+"""Lookalike effects told apart by replaying the controller output the rig recorded.
+
+In the closed loop, the rig's controller reads its own reading noise, and the rig moves with it: at a gain
+near the critical one, that motion is a lightly damped oscillation the model cannot know. It concentrates on a
+few dozen cycles, so two effects that act alike at the loop's frequencies (a delay and a spool lag of a
+millisecond, Coulomb friction and a valve deadband) trade places on a fit of the runs by chance: on benchmark run
+A's 0114 (a 1.1 ms spool lag), a delay fitted the closed-loop runs 3 % of the noise's mean square better than the
+spool lag at its true value, against 0.6 % the other way without noise.
+
+Replayed, the model is driven by the controller output of the ``u`` column instead of its own controller
+(:class:`grader.gap.backend.Backend` with ``replay``), so it follows the rig's own path, its noise-driven motion
+included, and what is left of a right model is the reading noise, sample by sample. Each candidate the data
+could not tell from the verdict, and the verdict, is fitted again to the replayed runs from its closed-loop
+optimum (its linear parameters and its own), each run with a position offset of its own (where the rig started:
+open loop, a start shifts the whole run). Their sums of squares are compared in units of the best one's mean
+square per sample: ``excess = (SS − SS_best) / (SS_best / N)``, a likelihood ratio's 2·ln on white noise.
+
+Two candidates whose excesses differ by :data:`EVIDENCE` or more are told apart. The verdict moves to the best
+only where the verdict is told apart from it, and where the best replayed fit is itself good (a mean square per
+sample at most :data:`GOOD` times the reading noise's): a rig the open-loop model cannot follow (a valve null
+offset integrated over a run) decides nothing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from concurrent.futures import Executor
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from grader.gap.backend import Backend
+from grader.gap.build import r6
+from grader.gap.fit import BatchFitter, FitState
+from grader.gap.runs import GapRun
+from grader.gap.schema import ReplayInfo
+from grader.gap.summary import by_text
+from grader.gap.verdict import Ranking
+from grader.model.params import RigParams
+
+Array = NDArray[np.float64]
+#: Excess (2·ln of a likelihood ratio) at which a replayed fit tells two candidates apart: "strong" evidence on
+#: Kass and Raftery's scale. On run A (seed 300), a delay's tied second-order spool (damping 0.7: below its corner,
+#: a delay of 1.4·tau) fitted the replayed runs 2.0 and 2.5 better than the delay on 2 of 25 delays, while a spool
+#: lag the closed loop took for a delay (0104) fitted 17.6 better, and Coulomb friction the closed loop took for a
+#: deadband 800 to 3,200 better.
+EVIDENCE = 6.0
+#: Best replayed fit's mean square per sample, in units of the reading noise's, above which the replay decides
+#: nothing (run A's delays and spool lags: 0.4 to 1.08).
+GOOD = 1.5
+#: Levenberg–Marquardt rounds from the closed-loop optimum.
+ROUNDS = 8
+
+
+@dataclass(frozen=True)
+class ReplayObjective:
+    """A run compared open loop: the model's positions x_k [in] against the readings y_k, less their mean
+    difference (the start), in units of the reading noise ``sigma`` [in]."""
+
+    run: GapRun
+    sigma: float
+
+    @property
+    def length(self) -> int:
+        return self.run.n
+
+    def residual(self, x: Array) -> Array:
+        d = x - self.run.y
+        return (d - np.mean(d)) / self.sigma
+
+
+@dataclass(frozen=True)
+class Replay:
+    """Replayed fits of candidates (by index into the caller's list): each one's excess over the best (its best
+    form's, where it was fitted in several) and which of the states compared that form was, the best's index and
+    its mean square per sample in units of the reading noise's."""
+
+    indices: tuple[int, ...]
+    excess: tuple[float, ...]
+    form: tuple[int, ...]
+    best: int
+    quality: float
+
+    @property
+    def decides(self) -> bool:
+        """Whether the best replayed fit is good enough to decide anything (:data:`GOOD`)."""
+        return self.quality <= GOOD
+
+    def apart(self, i: int, j: int) -> bool:
+        """Whether candidates ``i`` and ``j`` fit the replayed runs :data:`EVIDENCE` or more apart."""
+        return abs(self.excess[self.indices.index(i)] - self.excess[self.indices.index(j)]) >= EVIDENCE
+
+    def pick(self, verdict: int) -> int:
+        """The verdict the replay supports: the best where it tells ``verdict`` apart from it and decides."""
+        return self.best if self.decides and self.apart(verdict, self.best) else verdict
+
+    def kept(self, verdict: int, ties: Sequence[int]) -> list[int]:
+        """The ``ties`` the replay does not tell apart from ``verdict`` (all where it decides nothing)."""
+        return [i for i in ties if not (self.decides and i in self.indices and self.apart(i, verdict))]
+
+
+REPLAYED = "replayed through the controller output the rig recorded"
+
+
+def _why(names: Sequence[str], rp: Replay, old: int, v: int, gone: Sequence[int], what: str) -> str:
+    if v != old:
+        by = rp.excess[rp.indices.index(old)] - rp.excess[rp.indices.index(v)]
+        text = (f"{REPLAYED}, {names[v]}{what} follows the runs better than {names[old]} (by {by_text(by)} in 2·ln "
+                "likelihood), so it is named instead")
+        others = [names[i] for i in gone if i != old]
+        return text + (f", and tells it apart from {', '.join(others)}" if others else "")
+    if gone:
+        return f"{REPLAYED}, the runs tell {names[v]} apart from {', '.join(names[i] for i in gone)}"
+    return f"{REPLAYED}, the runs do not tell them apart either"
+
+
+def ranking(rk: Ranking, names: Sequence[str], rp: Replay) -> tuple[Ranking, str]:
+    """``rk`` with the replay's pick as the verdict and without the ties it tells apart, and why ('' where it
+    decides nothing)."""
+    if not rp.decides:
+        return rk, ""
+    old, v = rk.verdict, rp.pick(rk.verdict)
+    ties = rp.kept(v, [i for i in [old, *rk.ties] if i != v])
+    gone = [i for i in [old, *rk.ties] if i != v and i not in ties]
+    if v != old:
+        rk = replace(rk, order=[v, *(i for i in rk.order if i != v)], verdict=v, runner_up=old, margin=0.0, ties=ties)
+    else:
+        rk = replace(rk, ties=ties)
+    return rk, _why(names, rp, old, v, gone, "")
+
+
+def second(runs: Sequence[GapRun], base: RigParams, fits: Sequence[tuple[str, FitState]], tied: Sequence[int],
+           sigma: float, *, executor: Executor | None = None) -> tuple[int, list[int], Replay, str]:
+    """A second effect and its rivals (``fits``: the pick first, then the others that pass the bar, each on top of
+    the verdict; ``tied``: those the closed loop could not tell from the pick) compared on the replayed runs: the one
+    the replay supports, the pick and the tied ones it does not tell apart from that one, the replay, and why ('' where
+    it decides nothing)."""
+    names, every = [n for n, _ in fits], list(range(len(fits)))
+    rp = compare(runs, base, [s for _, s in fits], every, sigma, executor=executor)
+    if not rp.decides:
+        return 0, list(tied), rp, ""
+    v = rp.pick(0)
+    before = [0, *tied]
+    kept = rp.kept(v, [i for i in before if i != v])
+    return v, kept, rp, _why(names, rp, 0, v, [i for i in before if i != v and i not in kept], " on top")
+
+
+def replayable(runs: Sequence[GapRun]) -> bool:
+    """Whether every run recorded its controller output (finite)."""
+    return all(r.u is not None and bool(np.all(np.isfinite(r.u))) for r in runs)
+
+
+def compare(runs: Sequence[GapRun], base: RigParams, states: Sequence[FitState], indices: Sequence[int],
+            sigma: float, *, executor: Executor | None = None) -> Replay:
+    """``states`` (all-runs fits of candidates ``indices``; a candidate may come in several forms, a spool of
+    first and of second order) fitted again to the replayed ``runs`` from where they are, and compared (module
+    docstring); ``sigma`` [in] is the reading noise."""
+    fitter = BatchFitter([ReplayObjective(r, sigma) for r in runs], base, Backend(runs, executor=executor, replay=True))
+    start = fitter.rebase([replace(s, jac=None, done=False, n_free=None) for s in states])
+    ends = fitter.fit(start, rounds=ROUNDS, final_jacobian=False)
+    ss = np.array([s.cost for s in ends])
+    per = float(ss.min()) / sum(r.n for r in runs)
+    unique = tuple(dict.fromkeys(indices))
+    forms = [min((j for j, i in enumerate(indices) if i == u), key=lambda j: ss[j]) for u in unique]
+    excess = tuple(float((ss[j] - ss.min()) / per) if per > 0 else 0.0 for j in forms)
+    return Replay(unique, excess, tuple(forms), unique[int(np.argmin(excess))], per)
+
+
+def info(rp: Replay, names: Sequence[str], of: str) -> ReplayInfo:
+    """The replay as ``diagnosis.json`` reports it (``names`` by index; ``of``: "verdict" or "second_effect")."""
+    return ReplayInfo(of=of, excess={names[i]: r6(e) for i, e in zip(rp.indices, rp.excess)}, evidence=EVIDENCE,
+                      mean_square=r6(rp.quality), decides=rp.decides)

@@ -1,0 +1,127 @@
+"""Lookalikes told apart on runs replayed through the recorded controller output (grader.gap.replay)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from grader.gap import replay
+from grader.gap.diagnose import analyse
+from grader.gap.replay import EVIDENCE, GOOD, Replay, ReplayObjective
+from grader.gap.runs import GapRun
+from grader.gap.verdict import Ranking
+from grader.model.params import Controller
+
+NAMES = ["none", "sampling_delay", "valve_dynamics", "valve_hysteresis"]
+
+
+def _ranking(verdict: int, ties: list[int]) -> Ranking:
+    order = [verdict, *(i for i in range(4) if i != verdict)]
+    return Ranking(order, np.array([5.0, 1.0, 1.01, 1.02]), verdict, order[1], 0.01, 0.5, ties)
+
+
+@pytest.mark.parametrize(("excess", "quality", "verdict", "ties", "why"), [
+    # the tied spool follows the replayed runs clearly better: it becomes the verdict, the delay its runner-up
+    ((EVIDENCE + 1.0, 0.0), 1.0, 2, [], "valve_dynamics follows the runs better than sampling_delay"),
+    # within EVIDENCE of each other: nothing moves, and the tie stays
+    ((EVIDENCE - 0.1, 0.0), 1.0, 1, [2], "the runs do not tell them apart either"),
+    # the verdict fits clearly better: it stays, and the tie goes
+    ((0.0, EVIDENCE), 1.0, 1, [], "the runs tell sampling_delay apart from valve_dynamics"),
+    # the best replayed fit is poor (a rig the open-loop model cannot follow): the replay decides nothing
+    ((50.0, 0.0), GOOD + 0.1, 1, [2], ""),
+])
+def test_the_replay_moves_a_tie_only_on_clear_evidence_from_a_good_fit(excess: tuple[float, float], quality: float,
+                                                                       verdict: int, ties: list[int], why: str) -> None:
+    rp = Replay((1, 2), excess, (0, 1), 1 + int(np.argmin(excess)), quality)
+    rk, text = replay.ranking(_ranking(1, [2]), NAMES, rp)
+    assert (rk.verdict, rk.ties) == (verdict, ties)
+    assert rk.order[0] == verdict and sorted(rk.order) == [0, 1, 2, 3]
+    assert (why in text) if why else text == ""
+    if verdict != 1:
+        assert (rk.runner_up, rk.margin) == (1, 0.0)
+
+
+def test_a_third_lookalike_the_replay_tells_apart_leaves_the_ties() -> None:
+    rp = Replay((1, 2, 3), (EVIDENCE + 3.0, 0.0, 1.0), (0, 1, 2), 2, 0.9)
+    rk, text = replay.ranking(_ranking(1, [2, 3]), NAMES, rp)
+    assert (rk.verdict, rk.ties) == (2, [3])  # the hysteresis fits within EVIDENCE of the spool: still tied
+    assert "valve_dynamics follows the runs better than sampling_delay" in text and "named instead" in text
+
+
+def _run(y: np.ndarray) -> GapRun:
+    t = 0.002 * np.arange(y.size)
+    return GapRun("r", "step", Controller(1.0), t, np.zeros_like(y), y, np.zeros_like(y), 0.0, 1.0, np.zeros_like(y))
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(-1, 1), min_size=2, max_size=40), st.floats(-5, 5), st.floats(1e-4, 1e-2))
+def test_a_replayed_run_is_compared_without_its_start_in_units_of_the_noise(ys: list[float], shift: float,
+                                                                           sigma: float) -> None:
+    """A model shifted by a constant (where the rig started) fits as well: open loop, a start moves every sample."""
+    y = np.array(ys)
+    obj = ReplayObjective(_run(y), sigma)
+    x = np.linspace(0.0, 1.0, y.size)
+    a, b = obj.residual(x), obj.residual(x + shift)
+    assert np.allclose(a, b, atol=1e-9 / sigma) and abs(float(np.mean(a))) < 1e-9 / sigma
+    d = x - y
+    assert np.allclose(a * sigma, d - d.mean(), atol=1e-12)
+
+
+def _seed_300(index: int, tmp_path: Path) -> tuple[str, Path]:
+    from grader.gap.bench import BenchConfig, make_case_dataset
+    from grader.gap.bench_run import tasks
+
+    task = tuple(tasks(BenchConfig(n=25, pairs=60, seed=300, friction_test=False), Path("case")))[index]
+    folder = tmp_path / task.folder.name
+    make_case_dataset(task.station, task.truth, folder, task.seed, friction_test=False)
+    return task.label, folder
+
+
+def test_a_spool_lag_the_closed_loop_takes_for_a_delay_is_named_from_the_replayed_runs(
+        tmp_path: Path, without_u: Callable[[Path], Path]) -> None:
+    """Benchmark run A's 0104 (a first-order spool lag of 1.27 ms, sampled every 3.8 ms): a delay and the spool fit
+    the closed-loop runs alike, and the delay was the verdict. Replayed, the lag (tau 1.20 ms) follows the runs 17.6
+    better in 2·ln likelihood. Without the u column nothing can be replayed, and the tie stands as before."""
+    label, folder = _seed_300(104, tmp_path)
+    assert label == "valve_dynamics"
+    d = analyse(folder).diagnosis
+    assert d.verdict.effect == "valve_dynamics" and d.verdict.indistinguishable_from == []
+    assert d.verdict.runner_up == "sampling_delay" and "follows the runs better than sampling_delay" in d.verdict.explanation
+    (rp,) = d.replay
+    assert rp.of == "verdict" and rp.decides and rp.excess["valve_dynamics"] == 0.0
+    assert rp.excess["sampling_delay"] > 2 * EVIDENCE
+    tau = d.candidates[0].params["tau"]
+    assert "order" not in d.candidates[0].params and tau.interval[0] <= 0.00126555879347 <= tau.interval[1]
+    d = analyse(without_u(folder)).diagnosis
+    assert (d.verdict.effect, d.verdict.indistinguishable_from, d.replay) == ("sampling_delay", ["valve_dynamics"], [])
+
+
+def test_coulomb_friction_the_closed_loop_takes_for_a_deadband_is_named_from_the_replayed_runs(tmp_path: Path) -> None:
+    """Run A's 0185 (Coulomb friction of 0.35 lbf, no friction test): tied with a deadband in the closed loop, which
+    was the verdict; open loop the two act nothing alike (a deadband passes no flow, friction holds the mass until
+    the pressure breaks it away), and friction follows the replayed runs by hundreds in 2·ln likelihood."""
+    label, folder = _seed_300(185, tmp_path)
+    assert label == "coulomb_friction"
+    d = analyse(folder).diagnosis
+    assert d.verdict.effect == "coulomb_friction" and "valve_deadband" not in d.verdict.indistinguishable_from
+    (rp,) = d.replay
+    assert rp.excess["coulomb_friction"] == 0.0 and rp.excess["valve_deadband"] > 100 * EVIDENCE
+
+
+def test_a_second_effect_is_chosen_on_the_replayed_runs(tmp_path: Path) -> None:
+    """Run A's 0251: Coulomb friction (5.1 lbf) with a 3.4 ms spool lag. On top of the friction, the closed loop
+    preferred a delay to the spool lag (fitted to a poorer optimum); replayed, the lag follows the runs by well over
+    a thousand in 2·ln likelihood, and both effects are named."""
+    label, folder = _seed_300(251, tmp_path)
+    assert label == "coulomb_friction+valve_dynamics"
+    d = analyse(folder).diagnosis
+    assert (d.verdict.effect, d.verdict.second_effect) == ("coulomb_friction", "valve_dynamics")
+    second = next(r for r in d.replay if r.of == "second_effect")
+    assert second.decides and second.excess["valve_dynamics"] == 0.0
+    assert second.excess["sampling_delay"] > 100 * EVIDENCE
+    assert "valve_dynamics on top follows the runs better than sampling_delay" in d.verdict.explanation
