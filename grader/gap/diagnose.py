@@ -134,12 +134,13 @@ def _replayed(objs: Sequence[RunObjective], base: baseline_mod.Baseline, lag: Se
     runs = [o.run for o in objs]
     rp = replay.compare(runs, base.params, [s for _, s in forms], [i for i, _ in forms], sigma, executor=executor)
     rk, why = replay.ranking(rk, names, rp)
-    if rk.verdict == k and forms[rp.form[rp.indices.index(k)]][1] is lag.states[k]:
-        ties = rk.ties
+    won = forms[rp.form[rp.indices.index(k)]][1] if rk.verdict == k else None  # the spool's better replayed form
+    if won is not None and won is lag.states[k] and won is not found.states[k]:  # the lag's form won: its fit
+        moved = rk
         alt = SearchResult([lag.states[k]], [lag.cvs[k]], lag.lengths)
         found, scored, built, rk = _replaced(found, scored, built, k, alt, scored_of(alt)[0], noise_nrmse, before, objs,
                                              base)
-        rk = replace(rk, ties=ties)
+        rk = replace(rk, ties=moved.ties, runner_up=moved.runner_up, margin=moved.margin, confidence=moved.confidence)
     return found, scored, built, rk, rp, why
 
 

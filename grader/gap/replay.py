@@ -9,10 +9,11 @@ spool lag at its true value, against 0.6 % the other way without noise.
 
 Replayed, the model is driven by the controller output of the ``u`` column instead of its own controller
 (:class:`grader.gap.backend.Backend` with ``replay``), so it follows the rig's own path, its noise-driven motion
-included, and what is left of a right model is the reading noise, sample by sample. Each candidate the data
-could not tell from the verdict, and the verdict, is fitted again to the replayed runs from its closed-loop
-optimum (its linear parameters and its own), each run with a position offset of its own (where the rig started:
-open loop, a start shifts the whole run). Their sums of squares are compared in units of the best one's mean
+included, and what is left of a right model is the reading noise, sample by sample. The verdict, the candidates
+the closed-loop runs could not tell from it and every other effect that explains clearly more than ``none`` (and,
+on top of the verdict, a second effect, its lookalikes and the other additions that pass the bar) are fitted again
+to the replayed runs from their closed-loop optima (their linear parameters and their own), each run with a
+position offset of its own (where the rig started: open loop, a start shifts the whole run). Their sums of squares are compared in units of the best one's mean
 square per sample: ``excess = (SS − SS_best) / (SS_best / N)``, a likelihood ratio's 2·ln on white noise.
 
 Two candidates whose excesses differ by :data:`EVIDENCE` or more are told apart. The verdict moves to the best
@@ -103,7 +104,9 @@ class Replay:
 REPLAYED = "replayed through the controller output the rig recorded"
 
 
-def _why(names: Sequence[str], rp: Replay, old: int, v: int, gone: Sequence[int], what: str) -> str:
+def _why(names: Sequence[str], rp: Replay, old: int, v: int, tied: Sequence[int], gone: Sequence[int],
+         what: str) -> str:
+    """What the replay changed: a new pick, ties told apart, or ties it could not break ('' where there were none)."""
     if v != old:
         by = rp.excess[rp.indices.index(old)] - rp.excess[rp.indices.index(v)]
         text = (f"{REPLAYED}, {names[v]}{what} follows the runs better than {names[old]} (by {by_text(by)} in 2·ln "
@@ -112,22 +115,24 @@ def _why(names: Sequence[str], rp: Replay, old: int, v: int, gone: Sequence[int]
         return text + (f", and tells it apart from {', '.join(others)}" if others else "")
     if gone:
         return f"{REPLAYED}, the runs tell {names[v]} apart from {', '.join(names[i] for i in gone)}"
-    return f"{REPLAYED}, the runs do not tell them apart either"
+    return f"{REPLAYED}, the runs do not tell them apart either" if tied else ""
 
 
 def ranking(rk: Ranking, names: Sequence[str], rp: Replay) -> tuple[Ranking, str]:
-    """``rk`` with the replay's pick as the verdict and without the ties it tells apart, and why ('' where it
-    decides nothing)."""
+    """``rk`` with the replay's pick as the verdict (runner-up the old verdict, margin and confidence 0: the
+    closed-loop runs do not name it) and without the ties it tells apart, and why ('' where it decides nothing or
+    changes nothing)."""
     if not rp.decides:
         return rk, ""
     old, v = rk.verdict, rp.pick(rk.verdict)
     ties = rp.kept(v, [i for i in [old, *rk.ties] if i != v])
     gone = [i for i in [old, *rk.ties] if i != v and i not in ties]
     if v != old:
-        rk = replace(rk, order=[v, *(i for i in rk.order if i != v)], verdict=v, runner_up=old, margin=0.0, ties=ties)
+        rk = replace(rk, order=[v, *(i for i in rk.order if i != v)], verdict=v, runner_up=old, margin=0.0,
+                     confidence=0.0, ties=ties)
     else:
         rk = replace(rk, ties=ties)
-    return rk, _why(names, rp, old, v, gone, "")
+    return rk, _why(names, rp, old, v, rk.ties, gone, "")
 
 
 def second(runs: Sequence[GapRun], base: RigParams, fits: Sequence[tuple[str, FitState]], tied: Sequence[int],
@@ -143,7 +148,7 @@ def second(runs: Sequence[GapRun], base: RigParams, fits: Sequence[tuple[str, Fi
     v = rp.pick(0)
     before = [0, *tied]
     kept = rp.kept(v, [i for i in before if i != v])
-    return v, kept, rp, _why(names, rp, 0, v, [i for i in before if i != v and i not in kept], " on top")
+    return v, kept, rp, _why(names, rp, 0, v, tied, [i for i in before if i != v and i not in kept], " on top")
 
 
 def replayable(runs: Sequence[GapRun]) -> bool:

@@ -156,11 +156,13 @@ class LoopGainInfo(_Frozen):
 
 
 class ReplayInfo(_Frozen):
-    """Effects the closed-loop runs could not tell apart, fitted again to the runs replayed through the controller
-    output the rig recorded (datasets with a ``u`` column)."""
+    """Effects fitted again to the runs replayed through the controller output the rig recorded (datasets with a
+    ``u`` column on every run)."""
 
-    of: Literal["verdict", "second_effect"] = Field(description="what was replayed: the verdict and the candidates "
-                                                                "tied with it, or the second effect and its lookalikes "
+    of: Literal["verdict", "second_effect"] = Field(description="what was replayed: the verdict, the candidates "
+                                                                "tied with it and the other effects that explain "
+                                                                "clearly more than 'none'; or the second effect, its "
+                                                                "lookalikes and the other additions that pass the bar "
                                                                 "(each on top of the verdict)")
     excess: dict[str, float] = Field(description="each candidate's replayed fit: its sum of squares above the best "
                                                  "one's, in units of the best one's mean square per sample (2·ln of a "
@@ -189,8 +191,10 @@ class Diagnosis(_Frozen):
         default_factory=dict, description="effect parameters the static tests measure (friction test: Fc and B)")
     loop_gain: LoopGainInfo | None = Field(None, description="the flow test's Kq against the runs' loop gain "
                                                              "(datasets without a friction test)")
-    replay: list[ReplayInfo] = Field(default_factory=list, description="lookalikes compared on the replayed runs "
-                                                                       "(empty: none, or no recorded controller output)")
+    replay: list[ReplayInfo] = Field(default_factory=list, description="candidates compared on the replayed runs "
+                                                                       "(empty where the verdict is 'none', no other "
+                                                                       "effect competes with it, the friction test broke "
+                                                                       "a tie, or a run has no finite u column)")
     notes: list[str]
 
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)

@@ -156,8 +156,10 @@ def _which(d: Diagnosis, best: Candidate) -> str:
 
 
 def by_text(x: float) -> str:
-    """A replay's excess (2·ln likelihood) as text: three digits, or a whole number with thousands separators from
-    1,000 up."""
+    """A replay's excess (2·ln likelihood) as text: three digits, a whole number with thousands separators from
+    1,000 up, and "more than 100,000" beyond (a fit whose residual reached the cap that marks a diverged model)."""
+    if abs(x) > 1e5:
+        return "more than 100,000"
     return f"{x:,.0f}" if abs(x) >= 1000 else f"{x:.3g}"
 
 
