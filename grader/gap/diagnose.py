@@ -122,10 +122,11 @@ def _replayed(objs: Sequence[RunObjective], base: baseline_mod.Baseline, lag: Se
               scored: list[Scored], built: list[SchemaCandidate], rk: Ranking, told: list[int], noise_nrmse: Array,
               before: CrossValidation, sigma: float, executor: Executor | None
               ) -> tuple[SearchResult, list[Scored], list[SchemaCandidate], Ranking, replay.Replay, str]:
-    """The candidates ``told`` (the verdict, its ties and the other effects that explain clearly more than ``none``)
-    compared on the replayed runs (:mod:`grader.gap.replay`), a spool in both its forms where ``found`` holds the
-    second-order one and ``lag`` the first-order lag; where the lag's form wins the verdict, its fit is restored.
-    Returns the search, scores, report entries and ranking, the replay and why."""
+    """The candidates ``told`` (the verdict, its ties and the other effects that explain clearly more than ``none``
+    and score within :data:`grader.gap.replay.SPAN` of it) compared on the replayed runs (:mod:`grader.gap.replay`),
+    a spool in both its forms where ``found`` holds the second-order one and ``lag`` the first-order lag; where the
+    lag's form wins the verdict, its fit is restored. Returns the search, scores, report entries and ranking, the
+    replay and why."""
     names = [s.candidate.effect for s in found.states]
     forms = [(i, found.states[i]) for i in told]
     k = names.index(spool.SPOOL) if spool.SPOOL in names else -1
@@ -170,7 +171,8 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
             found, scored, built, rk = _second_order_spool(objs, base, found, scored, built, rk, noise_nrmse, before,
                                                            executor)
         rp = None
-        told = [rk.verdict, *rk.ties, *(i for i in explaining(scored, noise_nrmse) if i not in (rk.verdict, *rk.ties))]
+        told = [rk.verdict, *rk.ties, *(i for i in explaining(scored, noise_nrmse) if i not in (rk.verdict, *rk.ties)
+                                        and np.log(rk.scores[i] / rk.scores[rk.verdict]) < replay.SPAN)]
         if names[rk.verdict] != NONE and len(told) > 1 and not why and replay.replayable(runs):
             found, scored, built, rk, rp, why = _replayed(objs, base, lag, found, scored, built, rk, told, noise_nrmse,
                                                           before, sigma, executor)

@@ -23,6 +23,7 @@ from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.lm import sumsq
 from grader.gap.objective import RunObjective
+from grader.gap.replay import SPAN
 from grader.gap.schema import Candidate as SchemaCandidate
 from grader.gap.search import SearchResult, refit, second_effect
 from grader.gap.spread import spread
@@ -122,8 +123,9 @@ def pick_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first
         if pick == ref:
             return None, better
     alike = lookalikes(options, floor_nrmse, pick, ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
+    sc_options = scores(options)
     rivals = [i for i in explaining(options, floor_nrmse, reference=ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
-              if i != pick and i not in alike]
+              if i != pick and i not in alike and np.log(sc_options[i] / sc_options[pick]) < SPAN]
     k = eligible[pick]
 
     def entry(i: int) -> tuple[str, Scored, FitState, SchemaCandidate]:

@@ -161,9 +161,10 @@ class ReplayInfo(_Frozen):
 
     of: Literal["verdict", "second_effect"] = Field(description="what was replayed: the verdict, the candidates "
                                                                 "tied with it and the other effects that explain "
-                                                                "clearly more than 'none'; or the second effect, its "
-                                                                "lookalikes and the other additions that pass the bar "
-                                                                "(each on top of the verdict)")
+                                                                "clearly more than 'none' and score within a factor e "
+                                                                "of it; or the second effect, its lookalikes and the "
+                                                                "other additions that pass the bar and score within a "
+                                                                "factor e of it (each on top of the verdict)")
     excess: dict[str, float] = Field(description="each candidate's replayed fit: its sum of squares above the best "
                                                  "one's, in units of the best one's mean square per sample (2·ln of a "
                                                  "likelihood ratio on white noise; 0 = the best)")
