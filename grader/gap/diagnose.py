@@ -128,10 +128,10 @@ def _replayed(objs: Sequence[RunObjective], base: baseline_mod.Baseline, lag: Se
     lag's form wins the verdict, its fit is restored. Returns the search, scores, report entries and ranking, the
     replay and why."""
     names = [s.candidate.effect for s in found.states]
-    forms = [(i, found.states[i]) for i in told]
     k = names.index(spool.SPOOL) if spool.SPOOL in names else -1
+    forms = [(i, lag.states[i] if i == k else found.states[i]) for i in told]  # the spool's default form: a lag
     if k in told and lag.states[k] is not found.states[k]:
-        forms.append((k, lag.states[k]))
+        forms.append((k, found.states[k]))
     runs = [o.run for o in objs]
     rp = replay.compare(runs, base.params, [s for _, s in forms], [i for i, _ in forms], sigma, executor=executor)
     rk, why = replay.ranking(rk, names, rp)

@@ -14,13 +14,14 @@ the closed-loop runs could not tell from it and every other effect that explains
 scores within :data:`SPAN` of it (and, on top of the verdict, a second effect, its lookalikes and the other additions
 that pass the bar and score within SPAN of it) are fitted again
 to the replayed runs from their closed-loop optima (their linear parameters and their own), each run with a
-position offset of its own (where the rig started: open loop, a start shifts the whole run). Their sums of squares are compared in units of the best one's mean
+position offset and a drift of its own (open loop, where the rig started shifts the whole run, and a valve null
+offset, which the rig's controller held against, integrates to a constant velocity: with 0.05 V added to every
+recorded output of run A's 0104, the replay still named the spool lag, while without the drift 2 mV stopped it). Their sums of squares are compared in units of the best one's mean
 square per sample: ``excess = (SS − SS_best) / (SS_best / N)``, a likelihood ratio's 2·ln on white noise.
 
 Two candidates whose excesses differ by :data:`EVIDENCE` or more are told apart. The verdict moves to the best
 only where the verdict is told apart from it, and where the best replayed fit is itself good (a mean square per
-sample at most :data:`GOOD` times the reading noise's): a rig the open-loop model cannot follow (a valve null
-offset integrated over a run) decides nothing.
+sample at most :data:`GOOD` times the reading noise's): a rig the open-loop model cannot follow decides nothing.
 """
 
 from __future__ import annotations
@@ -44,8 +45,8 @@ from grader.model.params import RigParams
 Array = NDArray[np.float64]
 #: Excess (2·ln of a likelihood ratio) at which a replayed fit tells two candidates apart: "strong" evidence on
 #: Kass and Raftery's scale. On run A (seed 300), a delay's tied second-order spool (damping 0.7: below its corner,
-#: a delay of 1.4·tau) fitted the replayed runs 2.0 and 2.5 better than the delay on 2 of 25 delays, while a spool
-#: lag the closed loop took for a delay (0104) fitted 17.6 better, and Coulomb friction the closed loop took for a
+#: a delay of 1.4·tau) fitted the replayed runs 2.1 and 2.4 better than the delay on 2 of 25 delays, while a spool
+#: lag the closed loop took for a delay (0104) fitted 16.5 better, and Coulomb friction the closed loop took for a
 #: deadband 800 to 3,200 better.
 EVIDENCE = 6.0
 #: Best replayed fit's mean square per sample, in units of the reading noise's, above which the replay decides
@@ -63,8 +64,9 @@ SPAN = 1.0
 
 @dataclass(frozen=True)
 class ReplayObjective:
-    """A run compared open loop: the model's positions x_k [in] against the readings y_k, less their mean
-    difference (the start), in units of the reading noise ``sigma`` [in]."""
+    """A run compared open loop: the model's positions x_k [in] against the readings y_k, less the straight line in
+    time that fits their difference best (where the rig started, and the constant velocity that a valve null offset
+    the model lacks integrates to), in units of the reading noise ``sigma`` [in]."""
 
     run: GapRun
     sigma: float
@@ -75,7 +77,9 @@ class ReplayObjective:
 
     def residual(self, x: Array) -> Array:
         d = x - self.run.y
-        return (d - np.mean(d)) / self.sigma
+        tc = self.run.t - np.mean(self.run.t)
+        d = d - np.mean(d) - tc * (np.sum(tc * d) / np.sum(tc * tc))
+        return d / self.sigma
 
 
 @dataclass(frozen=True)
@@ -166,16 +170,29 @@ def replayable(runs: Sequence[GapRun]) -> bool:
 def compare(runs: Sequence[GapRun], base: RigParams, states: Sequence[FitState], indices: Sequence[int],
             sigma: float, *, executor: Executor | None = None) -> Replay:
     """``states`` (all-runs fits of candidates ``indices``; a candidate may come in several forms, a spool of
-    first and of second order) fitted again to the replayed ``runs`` from where they are, and compared (module
-    docstring); ``sigma`` [in] is the reading noise."""
+    first and of second order, its default form first) fitted again to the replayed ``runs`` from where they are,
+    and compared (module docstring); a candidate's other form stands for it only where it fits :data:`EVIDENCE`
+    better than the default; ``sigma`` [in] is the reading noise."""
     fitter = BatchFitter([ReplayObjective(r, sigma) for r in runs], base, Backend(runs, executor=executor, replay=True))
     start = fitter.rebase([replace(s, jac=None, done=False, n_free=None) for s in states])
     ends = fitter.fit(start, rounds=ROUNDS, final_jacobian=False)
-    ss = np.array([s.cost for s in ends])
-    per = float(ss.min()) / sum(r.n for r in runs)
+    return scored([s.cost for s in ends], indices, sum(r.n for r in runs))
+
+
+def scored(ss: Sequence[float], indices: Sequence[int], n: int) -> Replay:
+    """The replay of fits whose sums of squares are ``ss`` (in units of the reading noise's variance) over ``n``
+    samples, of candidates ``indices`` (a candidate's default form first): each candidate stands by its default
+    form unless another of its forms fits :data:`EVIDENCE` better."""
+    per = min(ss) / n
     unique = tuple(dict.fromkeys(indices))
-    forms = [min((j for j, i in enumerate(indices) if i == u), key=lambda j: ss[j]) for u in unique]
-    excess = tuple(float((ss[j] - ss.min()) / per) if per > 0 else 0.0 for j in forms)
+    forms = []
+    for u in unique:
+        default, *others = [j for j, i in enumerate(indices) if i == u]
+        best = min(others, key=lambda j: ss[j], default=default)
+        forms.append(best if per > 0 and (ss[default] - ss[best]) / per >= EVIDENCE else default)
+    low = min(ss[j] for j in forms)
+    per = low / n
+    excess = tuple(float((ss[j] - low) / per) if per > 0 else 0.0 for j in forms)
     return Replay(unique, excess, tuple(forms), unique[int(np.argmin(excess))], per)
 
 

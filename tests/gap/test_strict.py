@@ -227,11 +227,11 @@ def test_a_fit_that_falls_off_the_instability_runs_cliff_starts_again_from_a_lin
     verdict; without that restart, and without the controller output to replay, it is not (it was a deadband).
     Replayed through the recorded controller output, even that poorer Coulomb fit follows the runs far better than
     the deadband, which then is no verdict."""
-    label, d = _seed_300_case(192, tmp_path / "with")
+    label, folder = _seed_300_dataset(192, tmp_path)
     assert label == "coulomb_friction"
+    d = analyse(folder).diagnosis
     assert (d.verdict.effect, d.verdict.second_effect) == ("coulomb_friction", None)
     monkeypatch.setattr(search, "CLIFF", math.inf)
-    _, folder = _seed_300_dataset(192, tmp_path / "without")
     d = analyse(folder).diagnosis
     assert d.verdict.effect == "coulomb_friction" and d.replay[0].excess["valve_deadband"] > 100 * d.replay[0].evidence
     assert analyse(without_u(folder)).diagnosis.verdict.effect != "coulomb_friction"
