@@ -47,7 +47,7 @@ Array = NDArray[np.float64]
 #: Kass and Raftery's scale. On run A (seed 300), a delay's tied second-order spool (damping 0.7: below its corner,
 #: a delay of 1.4·tau) fitted the replayed runs 2.1 and 2.4 better than the delay on 2 of 25 delays, while a spool
 #: lag the closed loop took for a delay (0104) fitted 16.5 better, and Coulomb friction the closed loop took for a
-#: deadband 800 to 3,200 better.
+#: deadband 48 to 420 better.
 EVIDENCE = 6.0
 #: Best replayed fit's mean square per sample, in units of the reading noise's, above which the replay decides
 #: nothing (run A's delays and spool lags: 0.4 to 1.08).
