@@ -84,9 +84,9 @@ class ReplayObjective:
 
 @dataclass(frozen=True)
 class Replay:
-    """Replayed fits of candidates (by index into the caller's list): each one's excess over the best (its best
-    form's, where it was fitted in several) and which of the states compared that form was, the best's index and
-    its mean square per sample in units of the reading noise's."""
+    """Replayed fits of candidates (by index into the caller's list): each one's excess over the best (that of the
+    form that stands for it, where it was fitted in several: :func:`scored`) and which of the states compared that
+    form was, the best's index and its mean square per sample in units of the reading noise's."""
 
     indices: tuple[int, ...]
     excess: tuple[float, ...]
