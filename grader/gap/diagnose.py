@@ -27,10 +27,10 @@ from grader.gap.candidates import LEAST_LIMIT, NONE, NOT_FROM_RUNS, Candidate, m
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.objective import RunObjective, objective
+from grader.gap.pairs import NONE_GAP, Second, beyond_none, fit_nrmse, pick_second, scored_of
 from grader.gap.runs import GapRun, check_gains, current_demand, cut_note, prepare_runs, start_offset_note
 from grader.gap.schema import Candidate as SchemaCandidate
 from grader.gap.schema import Diagnosis, ReplayInfo, Verdict
-from grader.gap.pairs import NONE_GAP, Second, beyond_none, fit_nrmse, pick_second, scored_of
 from grader.gap.search import SearchResult, search
 from grader.gap.segments import Segment, segments_of
 from grader.gap.spread import spread

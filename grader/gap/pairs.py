@@ -66,6 +66,7 @@ def fit_nrmse(state: FitState, lengths: Sequence[int]) -> Array:
 
 
 def scored_of(found: SearchResult) -> list[Scored]:
+    """Each fit of ``found`` as the ranking sees it: held-out and all-runs NRMSE per run, extra parameters, strength."""
     return [Scored(s.candidate.effect, cv.heldout, fit_nrmse(s, found.lengths),
                    0 if s.candidate.effect == NONE else max(1, len(s.candidate.params)), s.candidate.strength(s.theta))
             for s, cv in zip(found.states, found.cvs)]
@@ -83,8 +84,8 @@ def _significant(cand: SchemaCandidate, effect: str) -> bool:
 
 
 def pick_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, others: Sequence[Candidate],
-            floor_nrmse: Array, before: CrossValidation, executor: Executor | None,
-            first_scored: Scored) -> tuple[Second | None, tuple[SearchResult, Scored] | None]:
+                floor_nrmse: Array, before: CrossValidation, executor: Executor | None,
+                first_scored: Scored) -> tuple[Second | None, tuple[SearchResult, Scored] | None]:
     """(the best second effect on top of ``first``, ``first`` refitted to a better optimum with its scores, or None
     for each).
 
@@ -151,7 +152,7 @@ def _alone_from(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first
 
 
 def could_pass(ends: Sequence[FitState], lengths: Sequence[int], floor_nrmse: Array,
-                first_scored: Scored) -> list[bool]:
+               first_scored: Scored) -> list[bool]:
     """Which fits of a second-effect search can still pass :data:`SECOND_GAIN`'s bar on the all-runs fit, which
     needs no cross-validation: the first alone (last) always; an addition only where it lowers the mean square of
     one of the first's two fits (this search's and ``first_scored``'s, whichever :func:`pick_second` ends up
@@ -165,8 +166,8 @@ def could_pass(ends: Sequence[FitState], lengths: Sequence[int], floor_nrmse: Ar
 
 
 def beyond_none(objs: Sequence[RunObjective], base: baseline_mod.Baseline, found: SearchResult, rk: Ranking,
-                      candidates: Sequence[Candidate], noise_nrmse: Array, sigma: float, before: CrossValidation,
-                      executor: Executor | None) -> tuple[Ranking, Second | None]:
+                candidates: Sequence[Candidate], noise_nrmse: Array, sigma: float, before: CrossValidation,
+                executor: Executor | None) -> tuple[Ranking, Second | None]:
     """No single effect explains the gap, yet the linear model leaves NONE_GAP times the noise's mean square
     (two effects that each alone fit no better, as a deadband beside a backlash): the effect that fits best
     with each other effect on top. A pair that explains clearly more than its first effect and than ``none``

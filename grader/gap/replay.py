@@ -29,6 +29,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -75,10 +76,16 @@ class ReplayObjective:
     def length(self) -> int:
         return self.run.n
 
+    @cached_property
+    def _centred(self) -> tuple[Array, float]:
+        """The run's time stamps less their mean [s], and their sum of squares [s²]."""
+        tc = self.run.t - np.mean(self.run.t)
+        return tc, float(np.sum(tc * tc))
+
     def residual(self, x: Array) -> Array:
         d = x - self.run.y
-        tc = self.run.t - np.mean(self.run.t)
-        d = d - np.mean(d) - tc * (np.sum(tc * d) / np.sum(tc * tc))
+        tc, tt = self._centred
+        d = d - np.mean(d) - tc * (np.sum(tc * d) / tt)
         return d / self.sigma
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -93,6 +94,17 @@ def test_a_replayed_run_is_compared_without_its_start_and_drift_in_units_of_the_
     d = x - y
     line = np.polyval(np.polyfit(run.t, d, 1), run.t)  # an independent least-squares line
     assert np.allclose(a * sigma, d - line, atol=1e-9)
+
+
+@pytest.mark.parametrize(("us", "ok"), [
+    ([np.zeros(5), np.ones(5)], True),
+    ([np.zeros(5), None], False),  # one run without a u column: nothing is replayed
+    ([np.zeros(5), np.array([0.0, 1.0, np.nan, 1.0, 0.0])], False),  # a gap in the recorded output
+    ([np.array([0.0, np.inf, 0.0, 0.0, 0.0])], False),
+])
+def test_runs_are_replayed_only_when_every_one_recorded_a_finite_controller_output(us: list, ok: bool) -> None:
+    runs = [replace(_run(np.zeros(5)), u=u) for u in us]
+    assert replay.replayable(runs) is ok
 
 
 def _seed_300(index: int, tmp_path: Path) -> tuple[str, Path]:
