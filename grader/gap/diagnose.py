@@ -33,8 +33,9 @@ from grader.gap.schema import Candidate as SchemaCandidate
 from grader.gap.schema import Diagnosis, ReplayInfo, Verdict
 from grader.gap.search import SearchResult, search
 from grader.gap.segments import Segment, segments_of
-from grader.gap.spread import spread
 from grader.gap.separating import separating_test
+from grader.gap.spread import spread
+from grader.gap.summary import by_text
 from grader.gap.verdict import Ranking, Scored, explaining, rank
 
 Array = NDArray[np.float64]
@@ -182,7 +183,8 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
             floor = np.sqrt(noise_nrmse**2 + spread(objs, first.candidate.point(base.params, first.theta), sigma))
             if second or _needs_second(first, found.lengths, floor):
                 others = [c for c in candidates if c.effect not in (NONE, names[rk.verdict], *NOT_FROM_RUNS)]
-                extra, better = pick_second(objs, base, first, others, floor, before, executor, scored[rk.verdict])
+                extra, better = pick_second(objs, base, first, others, floor, before, executor, scored[rk.verdict],
+                                            sigma, found.states[names.index(NONE)])
                 if better is not None and (rp is not None or not why):  # the verdict's own fit: the better
                     # optimum its pair search led to (a tie the friction test broke keeps its ranking; the ties the
                     # replay told apart stay apart)
@@ -193,7 +195,13 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
             rk, extra = beyond_none(objs, base, found, rk, candidates, noise_nrmse, sigma, before, executor)
             alone = extra is None
         replays, why2 = [] if rp is None else [replay.info(rp, names, "verdict")], ""
-        if extra is not None and (extra.lookalikes or extra.rivals) and replay.replayable(runs):
+        if extra is not None and extra.replay is not None:
+            replays.append(extra.replay)
+            by = by_text(extra.replay.excess[NONE])
+            why2 = (f"{replay.REPLAYED}, the runs follow {extra.state.candidate.names[-1]} on top better than "
+                    f"{names[rk.verdict]} alone (by {by} in 2·ln likelihood), though the closed-loop runs alone do not "
+                    "show it clearly")
+        elif extra is not None and (extra.lookalikes or extra.rivals) and replay.replayable(runs):
             alts = [(extra.state.candidate.names[-1], extra.scored, extra.state, extra.candidate), *extra.lookalikes,
                     *extra.rivals]
             v, kept, rp2, why2 = replay.second(runs, base.params, [(a[0], a[2]) for a in alts],
@@ -209,9 +217,11 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
         pair, added = extra.candidate, extra.state.candidate.names[-1]
         cands.append(pair)
         y_aug = _model_y(extra.state, runs, base)
-        first = cands[0].shrink / pair.shrink if pair.shrink > 0 else 1.0
+        first = (extra.share if extra.share is not None else
+                 cands[0].shrink / pair.shrink if pair.shrink > 0 else 1.0)
         share = build.r6(min(max(first, 0.0), 1.0))
-        text = (f"{verdict.explanation}; adding {added} on top explains clearly more" if alone else
+        text = (f"{verdict.explanation}; {added} is added on top" if extra.replay is not None else
+                f"{verdict.explanation}; adding {added} on top explains clearly more" if alone else
                 f"no single effect explains the gap clearly, {verdict.effect} with {added} on top does")
         test = separating_test(added, extra.alike)
         if extra.alike:

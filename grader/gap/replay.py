@@ -180,10 +180,17 @@ def compare(runs: Sequence[GapRun], base: RigParams, states: Sequence[FitState],
     first and of second order, its default form first) fitted again to the replayed ``runs`` from where they are,
     and compared (module docstring); a candidate's other form stands for it only where it fits :data:`EVIDENCE`
     better than the default; ``sigma`` [in] is the reading noise."""
+    ends = refitted(runs, base, states, sigma, executor=executor)
+    return scored([s.cost for s in ends], indices, sum(r.n for r in runs))
+
+
+def refitted(runs: Sequence[GapRun], base: RigParams, states: Sequence[FitState], sigma: float, *,
+             executor: Executor | None = None) -> list[FitState]:
+    """``states`` fitted again to the replayed ``runs`` from where they are (:data:`ROUNDS` rounds); each end's cost
+    is its sum of squares in units of the reading noise's variance (``sigma`` [in])."""
     fitter = BatchFitter([ReplayObjective(r, sigma) for r in runs], base, Backend(runs, executor=executor, replay=True))
     start = fitter.rebase([replace(s, jac=None, done=False, n_free=None) for s in states])
-    ends = fitter.fit(start, rounds=ROUNDS, final_jacobian=False)
-    return scored([s.cost for s in ends], indices, sum(r.n for r in runs))
+    return fitter.fit(start, rounds=ROUNDS, final_jacobian=False)
 
 
 def scored(ss: Sequence[float], indices: Sequence[int], n: int) -> Replay:

@@ -116,7 +116,9 @@ class Verdict(_Frozen):
     confidence: float = Field(ge=0, le=1, description="share of run-bootstrap resamples with the same winner")
     indistinguishable_from: list[str] = Field(description="candidates the data cannot tell apart from the verdict")
     second_effect: str | None = None
-    shares: dict[str, float] = Field(default_factory=dict, description="each named effect's share of the held-out shrink (sums to 1)")
+    shares: dict[str, float] = Field(default_factory=dict, description="each named effect's share of the held-out shrink (sums to 1; where the "
+                                   "replay named the second effect, of what the pair explains of the replayed runs' "
+                                   "sum of squares)")
     separating_test: str | None = Field(None, description="the extra test that would separate the verdict from a candidate the data cannot tell apart from it")
     explanation: str
     second_indistinguishable_from: list[str] = Field(
@@ -164,7 +166,9 @@ class ReplayInfo(_Frozen):
                                                                 "clearly more than 'none' and score within a factor e "
                                                                 "of it; or the second effect, its lookalikes and the "
                                                                 "other additions that pass the bar and score within a "
-                                                                "factor e of it (each on top of the verdict)")
+                                                                "factor e of it (each on top of the verdict); where no "
+                                                                "addition passes the bar, every addition fitted and, as "
+                                                                "'none', the verdict alone")
     excess: dict[str, float] = Field(description="each candidate's replayed fit: its sum of squares above the best "
                                                  "one's, in units of the best one's mean square per sample (2·ln of a "
                                                  "likelihood ratio on white noise; 0 = the best)")

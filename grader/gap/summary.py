@@ -6,7 +6,7 @@ unmodelled effect causes it, and how much better the model gets with it.
 
 from __future__ import annotations
 
-from grader.gap.schema import Candidate, Diagnosis, ReadOff, RunGap, Value
+from grader.gap.schema import Candidate, Diagnosis, ReadOff, ReplayInfo, RunGap, Value
 from grader.units import ureg
 
 #: Units shown to students instead of the internal ones, and how they are written.
@@ -144,12 +144,21 @@ def _which(d: Diagnosis, best: Candidate) -> str:
         text += f" {_viscous(d)}"
     if v.second_effect and combo is not None:
         params = ", ".join(param_text(k, p) for k, p in combo.params.items())
-        text += f" On top of it, {effect_name(v.second_effect)} explains clearly more ({params})."
+        nested = _nested(d)
+        if nested is None:
+            text += f" On top of it, {effect_name(v.second_effect)} explains clearly more ({params})."
+        else:
+            others = _apart(d, "second_effect", v.second_effect)
+            text += (f" On top of it, {effect_name(v.second_effect)} ({params}): replayed through the controller "
+                     f"output the rig recorded, the runs follow it better than {effect_name(v.effect)} alone (by "
+                     f"{by_text(nested.excess['none'] - nested.excess[v.second_effect])} in 2·ln likelihood)"
+                     f"{f' and than {others}' if others else ''}, though the closed-loop runs alone do not show it.")
         if v.second_indistinguishable_from:
             others = ", ".join(effect_name(e) for e in v.second_indistinguishable_from)
             text += (f" The data cannot tell {effect_name(v.second_effect)} apart from: {others}; "
                      f"{v.second_separating_test} would separate them.")
-        text += _replayed(d, "second_effect", v.second_effect)
+        if nested is None:
+            text += _replayed(d, "second_effect", v.second_effect)
     elif v.second_effect == "sensor_quantization":
         text += f" {_quantization(d)}"
     return text
@@ -163,20 +172,29 @@ def by_text(x: float) -> str:
     return f"{x:,.0f}" if abs(x) >= 1000 else f"{x:.3g}"
 
 
-def _replayed(d: Diagnosis, of: str, effect: str) -> str:
-    """The lookalikes the replayed runs told apart from ``effect`` (the verdict or the second effect), as a sentence
-    ('' where none was, or the replay decided nothing)."""
+def _nested(d: Diagnosis) -> ReplayInfo | None:
+    """The replay that named the second effect where the closed loop's bar did not (the verdict alone, ``none``
+    on top, among its entries), or None."""
+    return next((r for r in d.replay if r.of == "second_effect" and "none" in r.excess), None)
+
+
+def _apart(d: Diagnosis, of: str, effect: str) -> str:
+    """The lookalikes the replayed runs told apart from ``effect`` (the verdict or the second effect; not the
+    verdict alone), worst last, each with by how much: '' where none was, or the replay decided nothing."""
     r = next((r for r in d.replay if r.of == of and r.decides and effect in r.excess), None)
     if r is None:
         return ""
-    apart = [(e, x - r.excess[effect]) for e, x in r.excess.items() if e != effect and x - r.excess[effect] >= r.evidence]
-    if not apart:
-        return ""
-    apart.sort(key=lambda a: a[1])
+    apart = sorted(((e, x - r.excess[effect]) for e, x in r.excess.items()
+                    if e not in (effect, "none") and x - r.excess[effect] >= r.evidence), key=lambda a: a[1])
     worse = ", ".join(f"{effect_name(e)} (by {by_text(x)} in 2·ln likelihood)" for e, x in apart[:2])
-    more = f" and {len(apart) - 2} more" if len(apart) > 2 else ""
+    return worse + (f" and {len(apart) - 2} more" if len(apart) > 2 else "")
+
+
+def _replayed(d: Diagnosis, of: str, effect: str) -> str:
+    """The lookalikes the replayed runs told apart from ``effect``, as a sentence ('' where none was)."""
+    worse = _apart(d, of, effect)
     return (f" Replayed through the controller output the rig recorded, the runs follow {effect_name(effect)} better "
-            f"than {worse}{more}.")
+            f"than {worse}." if worse else "")
 
 
 def _with_params(d: Diagnosis, effect: str) -> str:
@@ -211,8 +229,9 @@ def _how_far(d: Diagnosis, best: Candidate) -> str:
     combo = combination(d)
     if combo is not None:
         shares = " and ".join(f"{effect_name(k)} {100 * v:.0f} %" for k, v in d.verdict.shares.items())
-        text += (f" With {effect_name(d.verdict.second_effect or '')} too: {100 * combo.shrink:.0f} % "
-                 f"(shares of that shrink: {shares}).")
+        of = ("of what the pair explains of the replayed runs' sum of squares" if _nested(d) is not None else
+              "of that shrink")
+        text += f" With {effect_name(d.verdict.second_effect or '')} too: {100 * combo.shrink:.0f} % (shares {of}: {shares})."
     return text
 
 

@@ -13,8 +13,10 @@ from hypothesis import strategies as st
 
 from grader.gap import replay
 from grader.gap.diagnose import analyse
+from grader.gap.pairs import NESTED, NESTED_SHARE, SECOND_STRENGTH, names_addition
 from grader.gap.replay import EVIDENCE, GOOD, Replay, ReplayObjective
 from grader.gap.runs import GapRun
+from grader.gap.summary import summary
 from grader.gap.verdict import Ranking
 from grader.model.params import Controller
 
@@ -96,6 +98,23 @@ def test_a_replayed_run_is_compared_without_its_start_and_drift_in_units_of_the_
     assert np.allclose(a * sigma, d - line, atol=1e-9)
 
 
+@pytest.mark.parametrize(("ss", "n", "strength", "named"), [
+    ([1000.0, 1200.0, 1050.0], 1000, 0.2, True),  # the first alone (last) fits 50 worse, 5 % of the mean square
+    ([1000.0, 1200.0, 1020.0], 1000, 0.2, False),  # 20 worse: below NESTED
+    ([10000.0, 12000.0, 10400.0], 10000, 0.2, False),  # 400 worse on 10,000 samples: 4 %, below NESTED_SHARE
+    ([1000.0, 1200.0, 1050.0], 1000, SECOND_STRENGTH / 2, False),  # the addition barely acts
+    ([1100.0, 1200.0, 1000.0], 1000, 0.2, False),  # the first alone is the best
+    ([1600.0, 1700.0, 2000.0], 1000, 0.2, False),  # the best leaves 1.6 times the noise: the replay decides nothing
+])
+def test_a_second_effect_the_bar_misses_is_named_only_where_the_replay_needs_it_clearly(
+        ss: list[float], n: int, strength: float, named: bool) -> None:
+    """Costs in units of the reading noise's variance: the best addition is named where the first alone fits
+    NESTED and NESTED_SHARE worse on the replayed runs, the fit is good and the addition acts."""
+    rp = replay.scored(ss, range(len(ss)), n)
+    assert names_addition(rp, n, strength) is named
+    assert (NESTED, NESTED_SHARE) == (30.0, 0.05)
+
+
 @pytest.mark.parametrize(("us", "ok"), [
     ([np.zeros(5), np.ones(5)], True),
     ([np.zeros(5), None], False),  # one run without a u column: nothing is replayed
@@ -160,3 +179,21 @@ def test_a_second_effect_is_chosen_on_the_replayed_runs(tmp_path: Path) -> None:
     assert second.decides and second.excess["valve_dynamics"] == 0.0
     assert second.excess["sampling_delay"] > 100 * EVIDENCE
     assert "valve_dynamics on top follows the runs better than sampling_delay" in d.verdict.explanation
+
+
+def test_a_second_effect_the_closed_loop_misses_is_named_from_the_replayed_runs(
+        tmp_path: Path, without_u: Callable[[Path], Path]) -> None:
+    """Run A's 0259: a spool lag with Coulomb friction (2,407 samples). The closed loop's bar passes no second
+    effect (the friction's 95 % interval reaches zero there); replayed, the lag alone fits 419 worse in 2·ln
+    likelihood (17 % of the mean square) than with the friction on top. Without u the lag stands alone, as before."""
+    label, folder = _seed_300(259, tmp_path)
+    assert label == "valve_dynamics+coulomb_friction"
+    d = analyse(folder).diagnosis
+    assert (d.verdict.effect, d.verdict.second_effect) == ("valve_dynamics", "coulomb_friction")
+    nested = next(r for r in d.replay if r.of == "second_effect")
+    assert nested.decides and nested.excess["coulomb_friction"] == 0.0 and nested.excess["none"] > 10 * NESTED
+    assert 0.5 < d.verdict.shares["valve_dynamics"] < 1.0 and sum(d.verdict.shares.values()) == pytest.approx(1.0)
+    assert "the runs follow coulomb_friction on top better than valve_dynamics alone" in d.verdict.explanation
+    assert "On top of it, Coulomb friction" in summary(d) and "valve dynamics alone (by 419" in summary(d)
+    d = analyse(without_u(folder)).diagnosis
+    assert (d.verdict.effect, d.verdict.second_effect, d.replay) == ("valve_dynamics", None, [])
