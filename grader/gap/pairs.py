@@ -23,7 +23,6 @@ from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.lm import sumsq
 from grader.gap.objective import RunObjective
-from grader.gap.runs import GapRun
 from grader.gap.schema import Candidate as SchemaCandidate
 from grader.gap.schema import ReplayInfo
 from grader.gap.search import SearchResult, refit, second_effect
@@ -125,9 +124,8 @@ def pick_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first
     options = [scored[i] for i in eligible]
     ref = len(eligible) - 1
     pick, _, _ = decide(options, floor_nrmse, reference=ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
-    runs = [o.run for o in objs]
     if pick == ref:
-        return _replayed_second(runs, base, first, none, found, scored, built, sigma, executor), None
+        return _replayed_second(objs, base, first, none, found, scored, built, before, sigma, executor), None
     refitted = _alone_from(objs, base, first, found.states[eligible[pick]], executor)
     alone = scored_of(refitted)[0]
     better = (refitted, alone) if better_alone(alone, first_scored) else None
@@ -136,7 +134,7 @@ def pick_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first
         pick, _, _ = decide(options, floor_nrmse, reference=ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
         if pick == ref:
             start = first if better is None else better[0].states[0]
-            return _replayed_second(runs, base, start, none, found, scored, built, sigma, executor), better
+            return _replayed_second(objs, base, start, none, found, scored, built, before, sigma, executor), better
     alike = lookalikes(options, floor_nrmse, pick, ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
     sc_options = scores(options)
     rivals = [i for i in explaining(options, floor_nrmse, reference=ref, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)
@@ -150,41 +148,57 @@ def pick_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first
                   tuple(entry(i) for i in rivals)), better
 
 
-def _replayed_second(runs: Sequence[GapRun], base: baseline_mod.Baseline, first: FitState, none: FitState | None,
-                     found: SearchResult, scored: Sequence[Scored], built: Sequence[SchemaCandidate],
-                     sigma: float | None, executor: Executor | None) -> Second | None:
-    """The addition of ``found`` (a second-effect search, the first alone last) that the replayed runs support where
-    the closed loop's bar passed none, or None. The additions and ``first`` alone are fitted again to the replayed
-    runs (:mod:`grader.gap.replay`); the best addition is named where the replay decides, ``first`` alone fits
-    :data:`NESTED` and :data:`NESTED_SHARE` worse, and the addition acts at :data:`SECOND_STRENGTH` or more there.
-    Its report entry and scores stay the closed loop's, its share is that of the replayed sum of squares the linear
-    model (``none``) leaves, and the additions within :data:`replay.EVIDENCE` of it are its lookalikes. The first
-    nests in every pair, so what a pair fits better than a right first effect alone is the reading noise's share of
-    one or two parameters: a few units of 2·ln likelihood."""
-    adds = len(found.states) - 1
+def _replayed_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState,
+                     none: FitState | None, found: SearchResult, scored: Sequence[Scored],
+                     built: Sequence[SchemaCandidate], before: CrossValidation, sigma: float | None,
+                     executor: Executor | None) -> Second | None:
+    """The addition of ``found`` (a second-effect search, the first alone last; the additions it did not
+    cross-validate in ``found.dropped``) that the replayed runs support where the closed loop's bar passed none, or
+    None. Every addition and ``first`` alone are fitted again to the replayed runs (:mod:`grader.gap.replay`).
+    Of the additions the replay cannot tell from its best (:data:`replay.EVIDENCE`), the one that fits the
+    closed-loop runs best is the pick, as the closed loop's ranking stands where the replay cannot overturn it; it
+    is named where the replay decides, ``first`` alone fits :data:`NESTED` and :data:`NESTED_SHARE` worse, and it
+    acts at :data:`SECOND_STRENGTH` or more there (:func:`names_addition`); the other additions so tied are its
+    lookalikes. Its report entry and scores are the closed loop's (cross-validated now where the search had not),
+    and its share that of the replayed sum of squares the linear model (``none``) leaves. The first nests in every
+    pair, so what a pair fits better than a right first effect alone is the reading noise's share of one or two
+    parameters: a few units of 2·ln likelihood."""
+    runs = [o.run for o in objs]
+    pool = [*found.states[:-1], *found.dropped]
+    adds = len(pool)
     if sigma is None or none is None or adds == 0 or not replay.replayable(runs):
         return None
-    ends = replay.refitted(runs, base.params, [*found.states[:-1], first, none], sigma, executor=executor)
+    ends = replay.refitted(runs, base.params, [*pool, first, none], sigma, executor=executor)
     linear = ends.pop().cost
     n = sum(r.n for r in runs)
     rp = replay.scored([s.cost for s in ends], range(adds + 1), n)
-    if not names_addition(rp, n, ends[rp.best].candidate.strength(ends[rp.best].theta)):
+    tied = [i for i in range(adds) if rp.excess[i] - min(rp.excess[:adds]) < replay.EVIDENCE]
+    k = min(tied, key=lambda i: pool[i].cost)
+    if not names_addition(rp, k, n, ends[k].candidate.strength(ends[k].theta)):
         return None
-    names = [s.candidate.names[-1] for s in found.states[:-1]]
-    k = rp.best
-    alike = tuple((names[i], scored[i], found.states[i], built[i]) for i in range(adds)
-                  if i != k and rp.excess[i] < replay.EVIDENCE)
+
+    def entry(i: int) -> tuple[str, Scored, FitState, SchemaCandidate]:
+        if i < len(found.states) - 1:
+            return pool[i].candidate.names[-1], scored[i], pool[i], built[i]
+        again = refit(objs, base.params, pool[i], executor=executor)  # at its optimum: the cross-validation
+        sc = scored_of(again)[0]
+        return (pool[i].candidate.names[-1], sc, again.states[0],
+                build.candidate(again.states[0], again.cvs[0], before, float(scores([sc])[0]), runs, again.lengths,
+                                base))
+
+    pick, *alike = [entry(i) for i in (k, *(i for i in tied if i != k))]
     explained = linear - ends[k].cost
     share = (linear - ends[adds].cost) / explained if explained > 0 else 1.0
-    return Second(found.states[k], built[k], scored[k], alike, (), replay.info(rp, [*names, NONE], "second_effect"),
+    names = [s.candidate.names[-1] for s in pool]
+    return Second(pick[2], pick[3], pick[1], tuple(alike), (), replay.info(rp, [*names, NONE], "second_effect"),
                   min(max(share, 0.0), 1.0))
 
 
-def names_addition(rp: replay.Replay, n: int, strength: float) -> bool:
-    """Whether the replay ``rp`` of additions and the first alone (last) over ``n`` samples names its best addition,
+def names_addition(rp: replay.Replay, k: int, n: int, strength: float) -> bool:
+    """Whether the replay ``rp`` of additions and the first alone (last) over ``n`` samples names addition ``k``,
     which acts at ``strength`` of its realistic range's top there (:func:`_replayed_second`)."""
     alone = len(rp.indices) - 1
-    gap = rp.excess[alone]
+    gap = rp.excess[alone] - rp.excess[k]
     return (rp.decides and rp.best != alone and gap >= NESTED and gap / n >= NESTED_SHARE
             and strength >= SECOND_STRENGTH)
 
@@ -209,8 +223,9 @@ def could_pass(ends: Sequence[FitState], lengths: Sequence[int], floor_nrmse: Ar
     """Which fits of a second-effect search can still pass :data:`SECOND_GAIN`'s bar on the all-runs fit, which
     needs no cross-validation: the first alone (last) always; an addition only where it lowers the mean square of
     one of the first's two fits (this search's and ``first_scored``'s, whichever :func:`pick_second` ends up
-    comparing with) by more than SECOND_GAIN times the floor's. The others could not be picked; their
-    cross-validation, about a third of the search, is skipped."""
+    comparing with) by more than SECOND_GAIN times the floor's. The others could not pass the bar; their
+    cross-validation, about a third of the search, is skipped (the replay, which may still name one of them,
+    cross-validates the one it names: :func:`_replayed_second`)."""
     w = np.ones(floor_nrmse.size)
     refs = (fit_nrmse(ends[-1], lengths), first_scored.fit)
     return [k == len(ends) - 1 or any(fit_gain(r, fit_nrmse(s, lengths), floor_nrmse, w, SECOND_GAIN) > 1.0

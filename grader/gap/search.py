@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -46,11 +46,13 @@ CLIFF_LINE = tuple(round(0.01 * i, 2) for i in range(-20, 21))
 @dataclass(frozen=True)
 class SearchResult:
     """All-runs fits and their cross-validations, in candidate order; ``lengths`` are the residual entries
-    of each run in the states' stacked residuals."""
+    of each run in the states' stacked residuals; ``dropped``: the fits a search's ``keep`` left out, in
+    candidate order (not cross-validated)."""
 
     states: list[FitState]
     cvs: list[CrossValidation]
     lengths: list[int]
+    dropped: list[FitState] = field(default_factory=list)
 
 
 def _fitter(objectives: Sequence[RunObjective], base: RigParams, window: float | None,
@@ -75,7 +77,8 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
     """Fit ``candidates`` around ``base`` on the runs of ``objectives`` and cross-validate them (see module
     docstring); ``theta0`` are the profile's starting points (default: the baseline, zero magnitudes); with them,
     the search is a second search (:func:`second_effect`): the last candidate is the first effect alone, which
-    every other one extends. With ``keep``, only the fits it keeps are cross-validated and returned, in order.
+    every other one extends. With ``keep``, only the fits it keeps are cross-validated and returned, in order (the
+    others in ``dropped``).
 
     Every whole-run fit starts twice, keeping the better end: from where the short windows led it and from
     the baseline's linear coordinates (for a second effect, the first effect's optimum's), since a profile can
@@ -109,9 +112,11 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
         again = full.fit(full.rebase(restarts), rounds=FULL_ROUNDS)
         for k, s in zip(redo, again):
             ends[k] = min(ends[k], s, key=lambda x: x.cost)
+    dropped: list[FitState] = []
     if keep is not None:
-        ends = [s for s, k in zip(ends, keep(ends, full.lengths)) if k]
-    return SearchResult(ends, cross_validate(full, ends), full.lengths)
+        kept = keep(ends, full.lengths)
+        ends, dropped = [s for s, k in zip(ends, kept) if k], [s for s, k in zip(ends, kept) if not k]
+    return SearchResult(ends, cross_validate(full, ends), full.lengths, dropped)
 
 
 def refit(objectives: Sequence[RunObjective], base: RigParams, start: FitState, *,

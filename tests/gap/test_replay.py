@@ -98,20 +98,22 @@ def test_a_replayed_run_is_compared_without_its_start_and_drift_in_units_of_the_
     assert np.allclose(a * sigma, d - line, atol=1e-9)
 
 
-@pytest.mark.parametrize(("ss", "n", "strength", "named"), [
-    ([1000.0, 1200.0, 1050.0], 1000, 0.2, True),  # the first alone (last) fits 50 worse, 5 % of the mean square
-    ([1000.0, 1200.0, 1020.0], 1000, 0.2, False),  # 20 worse: below NESTED
-    ([10000.0, 12000.0, 10400.0], 10000, 0.2, False),  # 400 worse on 10,000 samples: 4 %, below NESTED_SHARE
-    ([1000.0, 1200.0, 1050.0], 1000, SECOND_STRENGTH / 2, False),  # the addition barely acts
-    ([1100.0, 1200.0, 1000.0], 1000, 0.2, False),  # the first alone is the best
-    ([1600.0, 1700.0, 2000.0], 1000, 0.2, False),  # the best leaves 1.6 times the noise: the replay decides nothing
+@pytest.mark.parametrize(("ss", "k", "n", "strength", "named"), [
+    ([1000.0, 1200.0, 1050.0], 0, 1000, 0.2, True),  # the first alone (last) fits 50 worse, 5 % of the mean square
+    ([1000.0, 1003.0, 1100.0], 1, 1000, 0.2, True),  # a pick tied with the best (by the closed loop): 97 worse
+    ([1000.0, 1200.0, 1020.0], 0, 1000, 0.2, False),  # 20 worse: below NESTED
+    ([1000.0, 1040.0, 1060.0], 1, 1000, 0.2, False),  # 60 worse than the best, but 20 worse than the pick
+    ([10000.0, 12000.0, 10400.0], 0, 10000, 0.2, False),  # 400 worse on 10,000 samples: 4 %, below NESTED_SHARE
+    ([1000.0, 1200.0, 1050.0], 0, 1000, SECOND_STRENGTH / 2, False),  # the addition barely acts
+    ([1100.0, 1200.0, 1000.0], 0, 1000, 0.2, False),  # the first alone is the best
+    ([1600.0, 1700.0, 2000.0], 0, 1000, 0.2, False),  # the best leaves 1.6 times the noise: the replay decides nothing
 ])
 def test_a_second_effect_the_bar_misses_is_named_only_where_the_replay_needs_it_clearly(
-        ss: list[float], n: int, strength: float, named: bool) -> None:
-    """Costs in units of the reading noise's variance: the best addition is named where the first alone fits
-    NESTED and NESTED_SHARE worse on the replayed runs, the fit is good and the addition acts."""
+        ss: list[float], k: int, n: int, strength: float, named: bool) -> None:
+    """Costs in units of the reading noise's variance: addition ``k`` is named where the first alone fits NESTED
+    and NESTED_SHARE worse on the replayed runs, the fit is good and the addition acts."""
     rp = replay.scored(ss, range(len(ss)), n)
-    assert names_addition(rp, n, strength) is named
+    assert names_addition(rp, k, n, strength) is named
     assert (NESTED, NESTED_SHARE) == (30.0, 0.05)
 
 
