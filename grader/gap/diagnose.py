@@ -197,10 +197,10 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
         replays, why2 = [] if rp is None else [replay.info(rp, names, "verdict")], ""
         if extra is not None and extra.replay is not None:
             replays.append(extra.replay)
-            by = by_text(extra.replay.excess[NONE])
-            why2 = (f"{replay.REPLAYED}, the runs follow {extra.state.candidate.names[-1]} on top better than "
-                    f"{names[rk.verdict]} alone (by {by} in 2·ln likelihood), though the closed-loop runs alone do not "
-                    "show it clearly")
+            added = extra.state.candidate.names[-1]
+            by = by_text(extra.replay.excess[NONE] - extra.replay.excess[added])
+            why2 = (f"{replay.REPLAYED}, the runs follow {added} on top better than {names[rk.verdict]} alone (by "
+                    f"{by} in 2·ln likelihood), though the closed-loop runs alone do not show it clearly")
         elif extra is not None and (extra.lookalikes or extra.rivals) and replay.replayable(runs):
             alts = [(extra.state.candidate.names[-1], extra.scored, extra.state, extra.candidate), *extra.lookalikes,
                     *extra.rivals]

@@ -116,9 +116,9 @@ class Verdict(_Frozen):
     confidence: float = Field(ge=0, le=1, description="share of run-bootstrap resamples with the same winner")
     indistinguishable_from: list[str] = Field(description="candidates the data cannot tell apart from the verdict")
     second_effect: str | None = None
-    shares: dict[str, float] = Field(default_factory=dict, description="each named effect's share of the held-out shrink (sums to 1; where the "
-                                   "replay named the second effect, of what the pair explains of the replayed runs' "
-                                   "sum of squares)")
+    shares: dict[str, float] = Field(default_factory=dict, description=(
+        "each named effect's share of the held-out shrink (sums to 1; where the replay named the second effect, of "
+        "what the pair explains of the replayed runs' sum of squares)"))
     separating_test: str | None = Field(None, description="the extra test that would separate the verdict from a candidate the data cannot tell apart from it")
     explanation: str
     second_indistinguishable_from: list[str] = Field(

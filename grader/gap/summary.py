@@ -148,11 +148,12 @@ def _which(d: Diagnosis, best: Candidate) -> str:
         if nested is None:
             text += f" On top of it, {effect_name(v.second_effect)} explains clearly more ({params})."
         else:
-            others = _apart(d, "second_effect", v.second_effect)
+            rivals = _apart(d, "second_effect", v.second_effect)
             text += (f" On top of it, {effect_name(v.second_effect)} ({params}): replayed through the controller "
                      f"output the rig recorded, the runs follow it better than {effect_name(v.effect)} alone (by "
                      f"{by_text(nested.excess['none'] - nested.excess[v.second_effect])} in 2·ln likelihood)"
-                     f"{f' and than {others}' if others else ''}, though the closed-loop runs alone do not show it.")
+                     f"{f' or with {rivals} on top instead' if rivals else ''}, though the closed-loop runs alone do "
+                     "not show it.")
         if v.second_indistinguishable_from:
             others = ", ".join(effect_name(e) for e in v.second_indistinguishable_from)
             text += (f" The data cannot tell {effect_name(v.second_effect)} apart from: {others}; "
@@ -170,6 +171,11 @@ def by_text(x: float) -> str:
     if abs(x) > 1e5:
         return "more than 100,000"
     return f"{x:,.0f}" if abs(x) >= 1000 else f"{x:.3g}"
+
+
+def _percent(share: float) -> str:
+    """A share (fraction) in whole percent, "under 1 %" for a share that is there but rounds to 0."""
+    return "under 1 %" if 0 < share < 0.005 else f"{100 * share:.0f} %"
 
 
 def _nested(d: Diagnosis) -> ReplayInfo | None:
@@ -228,10 +234,11 @@ def _how_far(d: Diagnosis, best: Candidate) -> str:
             f"{100 * best.heldout_nrmse_before:.2g} % → {100 * best.heldout_nrmse_after:.2g} %, geometric mean over runs).")
     combo = combination(d)
     if combo is not None:
-        shares = " and ".join(f"{effect_name(k)} {100 * v:.0f} %" for k, v in d.verdict.shares.items())
+        shares = " and ".join(f"{effect_name(k)} {_percent(v)}" for k, v in d.verdict.shares.items())
         of = ("of what the pair explains of the replayed runs' sum of squares" if _nested(d) is not None else
               "of that shrink")
-        text += f" With {effect_name(d.verdict.second_effect or '')} too: {100 * combo.shrink:.0f} % (shares {of}: {shares})."
+        text += (f" With {effect_name(d.verdict.second_effect or '')} too: {100 * combo.shrink:.0f} % "
+                 f"(shares {of}: {shares}).")
     return text
 
 

@@ -185,9 +185,10 @@ def test_a_second_effect_is_chosen_on_the_replayed_runs(tmp_path: Path) -> None:
 
 def test_a_second_effect_the_closed_loop_misses_is_named_from_the_replayed_runs(
         tmp_path: Path, without_u: Callable[[Path], Path]) -> None:
-    """Run A's 0259: a spool lag with Coulomb friction (2,407 samples). The closed loop's bar passes no second
-    effect (the friction's 95 % interval reaches zero there); replayed, the lag alone fits 419 worse in 2·ln
-    likelihood (17 % of the mean square) than with the friction on top. Without u the lag stands alone, as before."""
+    """Run A's 0259: a 2.8 ms spool lag with 1.1 lbf of Coulomb friction (2,407 samples). The closed loop's bar
+    passes no second effect (the friction's 95 % interval reaches zero there); replayed, the lag alone fits 419 worse
+    in 2·ln likelihood (17 % of the mean square) than with the friction on top, and the closed-loop fit from the
+    replayed optimum covers both truths. Without u the lag stands alone, as before."""
     label, folder = _seed_300(259, tmp_path)
     assert label == "valve_dynamics+coulomb_friction"
     d = analyse(folder).diagnosis
@@ -195,7 +196,26 @@ def test_a_second_effect_the_closed_loop_misses_is_named_from_the_replayed_runs(
     nested = next(r for r in d.replay if r.of == "second_effect")
     assert nested.decides and nested.excess["coulomb_friction"] == 0.0 and nested.excess["none"] > 10 * NESTED
     assert 0.5 < d.verdict.shares["valve_dynamics"] < 1.0 and sum(d.verdict.shares.values()) == pytest.approx(1.0)
+    pair = d.candidates[-1]
+    assert pair.effect == "valve_dynamics+coulomb_friction"
+    for name, truth in (("valve_dynamics.tau", 0.00281582950485), ("coulomb_friction.Fc", 1.11668322962)):
+        assert pair.params[name].interval[0] <= truth <= pair.params[name].interval[1]
     assert "the runs follow coulomb_friction on top better than valve_dynamics alone" in d.verdict.explanation
     assert "On top of it, Coulomb friction" in summary(d) and "valve dynamics alone (by 419" in summary(d)
     d = analyse(without_u(folder)).diagnosis
     assert (d.verdict.effect, d.verdict.second_effect, d.replay) == ("valve_dynamics", None, [])
+
+
+def test_a_second_effect_the_pair_search_fitted_at_no_effect_is_named_from_its_replayed_optimum(tmp_path: Path) -> None:
+    """Run A's 0265: a 2.4 mA deadband with 4.4 lbf of Coulomb friction. The pair search fitted the friction at 0
+    and did not cross-validate it; replayed, it fits at about 4.5 lbf and the deadband alone fits 30,929 worse. The
+    pair's report entry is the closed-loop fit from that optimum (Fc about 3.1 lbf), not the search's at 0."""
+    label, folder = _seed_300(265, tmp_path)
+    assert label == "valve_deadband+coulomb_friction"
+    d = analyse(folder).diagnosis
+    assert (d.verdict.effect, d.verdict.second_effect) == ("valve_deadband", "coulomb_friction")
+    nested = next(r for r in d.replay if r.of == "second_effect")
+    assert nested.excess["none"] - nested.excess["coulomb_friction"] > 1000 * NESTED
+    fc = d.candidates[-1].params["coulomb_friction.Fc"]
+    assert fc.value > 2.0 and fc.interval[0] > 1.0
+    assert "Coulomb friction under 1 %" in summary(d)
