@@ -41,9 +41,9 @@ SECOND_REL_GAIN, SECOND_GAIN, SECOND_STRENGTH = 0.10, 0.25, 0.06
 NONE_GAP = 4.0
 #: A second effect the closed loop's bar misses is named where, replayed (:func:`_replayed_second`), the verdict
 #: alone fits NESTED worse than with it on top (2·ln likelihood ratio) and leaves NESTED_SHARE more mean square
-#: per sample. On benchmark run A (seed 300), the verdict alone fitted at most 3.6 worse than its best addition on
-#: the 31 single-effect datasets whose pair search ran, and 419 (17 % of the mean square) to more than 100,000
-#: worse on the 4 pairs whose second effect the bar missed and the replay named.
+#: per sample. On benchmark run A (seed 300), the verdict alone fitted at most 4.7 worse than its best addition on
+#: the 31 single-effect datasets whose pair search ran (0056 aside: an optimum, below), and 419 (17 % of the mean
+#: square) to more than 100,000 worse on the 4 pairs whose second effect the bar missed and the replay named.
 NESTED, NESTED_SHARE = 30.0, 0.05
 
 
