@@ -160,7 +160,7 @@ def _replayed_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, 
     is named where the replay decides, ``first`` alone fits :data:`NESTED` and :data:`NESTED_SHARE` worse, and it
     acts at :data:`SECOND_STRENGTH` or more there (:func:`names_addition`), and where its closed-loop fit from the
     replayed optimum still acts that much: that fit, cross-validated, is its report entry (the search's own may
-    sit at no effect: run A's 0265, a Coulomb level the closed loop fitted at 0 and the replay at 4.5 lbf). The
+    sit at no effect: run A's 0265, a Coulomb level the closed loop fitted at 0 and the replay at 3.0 lbf). The
     other additions so tied are its lookalikes. Its share is that of the replayed sum of squares the linear model
     (``none``) leaves. An addition with a magnitude nests the first at zero, so what such a pair fits better than
     a right first effect alone is the reading noise's share of one or two parameters: a few units of 2·ln
