@@ -76,7 +76,8 @@ def _verdict(rk: Ranking, names: list[str]) -> Verdict:
     ties = [names[i] for i in rk.ties]
     if v == NONE:
         text = "no candidate effect explains clearly more than the noise"
-    elif any(rk.scores[i] < rk.scores[rk.verdict] for i in [*rk.ties, *([] if rk.runner_up is None else [rk.runner_up])]):
+    elif any(rk.scores[i] < rk.scores[rk.verdict] for i in [*rk.ties, *([] if rk.runner_up is None else
+                                                                        [rk.runner_up])]):
         # kept over a lookalike (a second-order spool), or chosen over it by its fit or the replayed runs
         text = f"{v} explains the gap as well as any candidate"
     else:
@@ -271,9 +272,8 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     objs = [objective(r, noise.sigma) for r in runs]
     own = spread(objs, Point(base.params), noise.sigma)
     objs = [replace(o, weight=float(np.sqrt(f**2 / (f**2 + s)))) for o, f, s in zip(objs, noise_nrmse, own)]
-    cands, y_aug, verdict, replayed = _which_effect(objs, base, make_candidates(base.params, effects, demand=demand), noise_nrmse,
-                                          noise.sigma, fr,
-                                          second=second, parallel=parallel)
+    cands, y_aug, verdict, replayed = _which_effect(objs, base, make_candidates(base.params, effects, demand=demand),
+                                                    noise_nrmse, noise.sigma, fr, second=second, parallel=parallel)
     lg = None
     if fr is None and not base.kpot_from_flow_test:  # the flow test against the runs' loop gain (not against itself)
         lg = evidence.loop_gain(ds, next(c for c in cands if c.effect == verdict.effect), base.params)

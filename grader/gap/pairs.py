@@ -190,10 +190,10 @@ def _replayed_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, 
             return None
 
     def entry(start: FitState) -> tuple[str, Scored, FitState, SchemaCandidate]:
-        again = refit(objs, base.params, start, executor=executor)  # the closed loop's fit, cross-validated
-        sc = scored_of(again)[0]
-        return (start.candidate.names[-1], sc, again.states[0],
-                build.candidate(again.states[0], again.cvs[0], before, float(scores([sc])[0]), runs, again.lengths,
+        closed = refit(objs, base.params, start, executor=executor)  # the closed loop's fit, cross-validated
+        sc = scored_of(closed)[0]
+        return (start.candidate.names[-1], sc, closed.states[0],
+                build.candidate(closed.states[0], closed.cvs[0], before, float(scores([sc])[0]), runs, closed.lengths,
                                 base))
 
     pick = entry(replace(pool[k], theta=ends[k].theta))

@@ -11,12 +11,13 @@ Replayed, the model is driven by the controller output of the ``u`` column inste
 (:class:`grader.gap.backend.Backend` with ``replay``), so it follows the rig's own path, its noise-driven motion
 included, and what is left of a right model is the reading noise, sample by sample. The verdict, the candidates
 the closed-loop runs could not tell from it and every other effect that explains clearly more than ``none`` and
-scores within :data:`SPAN` of it (and, on top of the verdict, a second effect, its lookalikes and the other additions
-that pass the bar and score within SPAN of it) are fitted again
-to the replayed runs from their closed-loop optima (their linear parameters and their own), each run with a
-position offset and a drift of its own (open loop, where the rig started shifts the whole run, and a valve null
-offset, which the rig's controller held against, integrates to a constant velocity: with 0.05 V added to every
-recorded output of run A's 0104, the replay still named the spool lag, while without the drift 2 mV stopped it). Their sums of squares are compared in units of the best one's mean
+scores within :data:`SPAN` of it (and, on top of the verdict, a second effect, its lookalikes and the other
+additions that pass the bar and score within SPAN of it; or, where none passes it, every addition:
+:func:`grader.gap.pairs.pick_second`) are fitted again to the replayed runs from their closed-loop optima (their
+linear parameters and their own), each run with a position offset and a drift of its own (open loop, where the rig
+started shifts the whole run, and a valve null offset, which the rig's controller held against, integrates to a
+constant velocity: with 0.05 V added to every recorded output of run A's 0104, the replay still named the spool
+lag, while without the drift 2 mV stopped it). Their sums of squares are compared in units of the best one's mean
 square per sample: ``excess = (SS − SS_best) / (SS_best / N)``, a likelihood ratio's 2·ln on white noise.
 
 Two candidates whose excesses differ by :data:`EVIDENCE` or more are told apart. The verdict moves to the best
