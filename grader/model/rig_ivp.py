@@ -16,10 +16,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.integrate import solve_ivp
+from scipy.integrate import RK45, solve_ivp
 
 from grader.model.effects import NO_EFFECTS, EffectSet
 from grader.model.params import Controller, RigParams
@@ -67,6 +68,18 @@ def _rig(p: RigParams, e: EffectSet) -> _Rig:
         order=int(_get(e, "valve_dynamics", "order", 1.0)), zeta=_get(e, "valve_dynamics", "zeta", 0.7),
         lsb=2.0 * DAC_VOLTS / 2.0**bits if bits else 0.0,
     )
+
+
+class FixedOrderRK45(RK45):
+    """scipy's RK45 with its stages held in long double, so that numpy sums every combination of stages (the
+    step, its error, the dense output that locates events) in its own loop, in a fixed order. In float64 it
+    calls BLAS, whose kernels round differently from one CPU to another, and the instability run grows any
+    difference: a benchmark dataset then depended on the machine that generated it. Give ``first_step``:
+    scipy's choice of the first step also goes through BLAS."""
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+        self.K = self.K.astype(np.longdouble)
 
 
 class _Plant:
@@ -133,13 +146,22 @@ def _events(plant: _Plant) -> list[Callable[[float, Array], float]] | None:
     return [stop, breakaway]
 
 
+def _solve(plant: _Plant, s: Array, t0: float, t1: float, rtol: float, atol: float, method: str,
+           events: list[Callable[[float, Array], float]] | None = None) -> Any:
+    """``solve_ivp`` over [t0, t1] s; "RK45" is :class:`FixedOrderRK45`, its first step the whole interval."""
+    if method != "RK45":
+        return solve_ivp(plant.rhs, (t0, t1), s, method=method, rtol=rtol, atol=atol, events=events)
+    return solve_ivp(plant.rhs, (t0, t1), s, method=FixedOrderRK45, rtol=rtol, atol=atol, events=events,
+                     first_step=t1 - t0)
+
+
 def _integrate(plant: _Plant, s: Array, t0: float, t1: float, rtol: float, atol: float, method: str) -> Array:
     """Integrate one constant-input interval, restarting at every stick/slip event."""
     events = _events(plant)
     while t1 - t0 > 1e-12:
-        sol = solve_ivp(plant.rhs, (t0, t1), s, method=method, rtol=rtol, atol=atol, events=events)
+        sol = _solve(plant, s, t0, t1, rtol, atol, method, events)
         stalled = sol.t[-1] - t0 <= 1e-12
-        s, t0 = sol.y[:, -1].copy(), float(sol.t[-1])
+        s, t0 = sol.y[:, -1].astype(float), float(sol.t[-1])
         if sol.status != 1:
             continue
         if plant.mode:
@@ -147,7 +169,7 @@ def _integrate(plant: _Plant, s: Array, t0: float, t1: float, rtol: float, atol:
         plant.mode = plant.after_event(s)
         if stalled:  # the event fired again at once (force swinging through Fc at v = 0): step past it
             t_next = min(t0 + CHATTER_STEP, t1)
-            s = solve_ivp(plant.rhs, (t0, t_next), s, method=method, rtol=rtol, atol=atol).y[:, -1].copy()
+            s = _solve(plant, s, t0, t_next, rtol, atol, method).y[:, -1].astype(float)
             t0 = t_next
             if plant.mode * s[1] < 0:
                 s[1] = 0.0

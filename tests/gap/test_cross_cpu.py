@@ -50,3 +50,39 @@ def test_a_diagnosis_is_the_same_bytes_under_every_blas_core_type(make: MakeData
         assert files.keys() == first.keys()
         for name, data in files.items():
             assert data == first[name], f"OPENBLAS_CORETYPE={core} wrote a different {name}"
+
+
+#: Run A's dataset 163 (seed 300): a random station of the benchmark, the orifice law withheld.
+GENERATE = """
+import sys
+from pathlib import Path
+from grader.gap.bench import make_case_dataset
+from grader.model.effects import EffectSet
+from grader.stations import Station
+station = Station.model_validate({
+    "station": "default", "feedback": "inches",
+    "given": {"weight": "57.1 lbf", "bore": "0.5 in", "rod": "0.25 in", "supply_pressure": "1000 psi",
+              "Kamp": "5 mA/V", "i_max": "50 mA", "sample_time": "0.00201 s"},
+    "truth": {"Kq": "0.04705 in^3/s/mA", "Kpot": "0.8242 V/in", "pot_offset": "4.2 V",
+              "beta_over_Vt": "76267.5 psi/in^3", "Kce": "6.075e-04 in^3/s/psi", "B": "0 lbf*s/in",
+              "leakage": "0.11 in^3/s", "null_offset": "0.4 mA", "flow_saturation": "42 mA"},
+    "noise": {"position": "1.583e-04 in", "voltage": "0.002 V", "flow": "0.006 in^3/s", "force": "0.08 lbf"}})
+effects = EffectSet({"pressure_flow_nonlinearity": {}})
+make_case_dataset(station, effects, Path(sys.argv[1]) / "ds", seed=166724841, friction_test=False)
+"""
+
+
+def test_a_benchmark_dataset_is_the_same_bytes_under_every_blas_core_type(tmp_path: Path) -> None:
+    """The benchmark's generator (scipy's solve_ivp, :mod:`grader.model.rig_ivp`) writes the same files whatever
+    BLAS kernels run. With scipy's float64 RK45, whose stage sums go through BLAS, run A's dataset 163 had a
+    different instability run under Prescott's kernels than under Haswell's, and a pinned test passed on one CPU
+    and failed on another."""
+    written = {}
+    for core in CORE_TYPES:
+        subprocess.run([sys.executable, "-c", GENERATE, str(tmp_path / core)], check=True, capture_output=True,
+                       env={**os.environ, "OPENBLAS_CORETYPE": core}, timeout=300)
+        written[core] = {p.name: p.read_bytes() for p in sorted((tmp_path / core / "ds").iterdir())}
+    first = written[CORE_TYPES[0]]
+    assert {"instability.csv", "manifest.json"} <= first.keys()
+    for core, files in written.items():
+        assert files == first, f"OPENBLAS_CORETYPE={core} generated different files"
