@@ -22,6 +22,7 @@ from grader.assess.views import (
     survey_most_useful,
     survey_summary,
 )
+from grader.exports.atomic import workbook_bytes
 from grader.exports.cells import literal_text
 from grader.exports.sheets import fit_columns
 
@@ -99,7 +100,7 @@ def write_survey_xlsx(report: SurveyReport, images: Mapping[str, bytes], path: P
     row = _write_paragraphs(notes, "What these data can and cannot show", report.limitations, 1)
     _write_paragraphs(notes, "Data notes", report.notes, row)
     notes.column_dimensions["A"].width = 120
-    literal_text(workbook).save(path)
+    path.write_bytes(workbook_bytes(literal_text(workbook)))
 
 
 def write_exam_xlsx(report: ExamReport, images: Mapping[str, bytes], path: Path) -> None:
@@ -116,4 +117,4 @@ def write_exam_xlsx(report: ExamReport, images: Mapping[str, bytes], path: Path)
     _write_paragraphs(text, "Notes", report.notes, row)
     text.column_dimensions["A"].width = 140
     _image_sheet(workbook, "Chart", [images["exam"]])
-    literal_text(workbook).save(path)
+    path.write_bytes(workbook_bytes(literal_text(workbook)))

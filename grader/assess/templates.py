@@ -15,6 +15,7 @@ from grader.assess.mapping import SurveyMapping
 from grader.assess.survey_io import TEMPLATE_EXTRA_COLUMNS
 from grader.assess.tables import XLSX_SUFFIXES, column_letter
 from grader.errors import AssessmentError
+from grader.exports.atomic import workbook_bytes
 
 _VALIDATED_ROWS = 1000
 
@@ -52,7 +53,7 @@ def _validate(sheet, columns: Sequence[int], choices: Sequence[str], prompt: str
 
 def _save_xlsx(workbook: Workbook, path: Path) -> None:
     try:
-        workbook.save(path)
+        path.write_bytes(workbook_bytes(workbook))
     except OSError as exc:
         raise AssessmentError(f"{path}: cannot write the template ({exc.strerror})") from exc
 

@@ -207,3 +207,16 @@ def test_custom_mapping_with_two_labs_and_seven_points(tmp_path: Path) -> None:
     assert report["comparisons"][0]["friedman_chi2"] is None  # two labs: no omnibus test
     assert report["comparisons"][0]["supported"] is True  # New rig: 12 of 12 paired students higher
     assert sorted(p.name for p in out.iterdir()) == ["report.html", "report.json", "report.xlsx", "survey_ratings.png"]
+
+
+def test_every_xlsx_written_is_the_same_bytes_whenever_it_is_written(survey_out: Path, exam_out: Path,
+                                                                      tmp_path: Path) -> None:
+    """The reports' and the templates' workbooks carry no time of writing (openpyxl stamps the save time in the
+    document properties and on every zip entry): the same input gives the same bytes on another day."""
+    assert main(["survey-template", "--out", str(tmp_path / "survey.xlsx")]) == 0
+    assert main(["exam-template", "--out", str(tmp_path / "exam.xlsx")]) == 0
+    for path in (survey_out / "report.xlsx", exam_out / "report.xlsx", tmp_path / "survey.xlsx", tmp_path / "exam.xlsx"):
+        with zipfile.ZipFile(path) as z:
+            assert {i.date_time for i in z.infolist()} == {(1980, 1, 1, 0, 0, 0)}, path.name
+            core = z.read("docProps/core.xml").decode()
+        assert re.findall(r"<dcterms:(?:created|modified)[^>]*>([^<]*)<", core) == ["2000-01-01T00:00:00Z"] * 2, path
