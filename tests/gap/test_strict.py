@@ -251,8 +251,9 @@ def test_a_second_effect_that_only_led_the_first_to_a_better_optimum_is_not_name
     """Benchmark case 194 of seed 300 (Coulomb friction of 7 lbf alone): the Coulomb fit stops at a poorer optimum
     (fitted at the truth's parameters it costs a fifth as much), and a current limit on top led the pair to a better
     one. Coulomb friction alone, refitted from where that pair ended, predicts the left-out runs as well: no second
-    effect, and the verdict's fit is that refit. Without that refit the current limit was named."""
-    from grader.gap import pairs
+    effect, and the verdict's fit is that refit. Without that refit the current limit was named (the replay's check
+    of a second effect the bar names now drops it too: replayed, the friction alone fits as well)."""
+    from grader.gap import diagnose, pairs
 
     label, folder = _seed_300_dataset(194, tmp_path)
     assert label == "coulomb_friction"
@@ -260,8 +261,9 @@ def test_a_second_effect_that_only_led_the_first_to_a_better_optimum_is_not_name
     assert (d.verdict.effect, d.verdict.second_effect) == ("coulomb_friction", None)
     # the verdict reports that better optimum: Fc 7.5 lbf (truth 7.0), where the first search had 8.0
     assert abs(_fc(d) - 7.0) < 0.6
-    # no refit from the pair's end ever better: as before that refit
+    # no refit from the pair's end ever better, and no replay's check: as before them
     monkeypatch.setattr(pairs, "better_alone", lambda alone, bar: False)
+    monkeypatch.setattr(diagnose, "replay_shows", lambda *args: (True, 0.0))
     d = analyse(folder).diagnosis
     assert d.verdict.second_effect == "valve_saturation" and _fc(d) > 7.9
 
