@@ -236,5 +236,7 @@ def test_a_second_effect_the_replayed_runs_do_not_bear_out_is_not_named(tmp_path
     assert ("sampling_delay on top fits the closed-loop runs clearly better, but replayed through the controller "
             "output the rig recorded the runs follow valve_hysteresis alone better (by 13.8 in 2·ln likelihood)"
             in d.verdict.explanation)
+    assert ("Sampling delay on top fits the closed-loop runs clearly better, but not the runs replayed through the "
+            "controller output the rig recorded, so it is not named." in summary(d))
     monkeypatch.setattr(diagnose, "replay_shows", lambda *args: (True, 0.0))
     assert analyse(folder).diagnosis.verdict.second_effect == "sampling_delay"
