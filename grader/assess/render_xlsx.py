@@ -13,7 +13,7 @@ from openpyxl.styles import Alignment, Font
 from openpyxl.worksheet.worksheet import Worksheet
 
 from grader.assess.exam_report import informative_heading
-from grader.assess.schemas import ExamReport, SurveyReport
+from grader.assess.schemas import ExamReport, SurveyReport, round6
 from grader.assess.views import (
     View,
     exam_views,
@@ -51,7 +51,7 @@ def _write_views(sheet: Worksheet, views: Sequence[View], start: int = 1) -> int
             sheet.freeze_panes = f"A{row}"
         for values in view.rows:
             for col, (value, kind) in enumerate(zip(values, view.kinds, strict=True), start=1):
-                cell = sheet.cell(row=row, column=col, value=value)
+                cell = sheet.cell(row=row, column=col, value=round6(value) if isinstance(value, float) else value)
                 cell.number_format = _FORMATS["int" if isinstance(value, int) else kind]
             row += 1
         row += 1

@@ -12,13 +12,15 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, PlainSerializer
 
 
-def _round(value: float | None) -> float | None:
+def round6(value: float | None) -> float | None:
+    """``value`` to 6 significant digits as report.json and report.xlsx give it (None where not finite): their
+    last digits can differ between CPUs' BLAS kernels (an exam regression's t statistic did)."""
     if value is None or not math.isfinite(value):
         return None
     return float(f"{value:.6g}")
 
 
-Num = Annotated[float | None, PlainSerializer(_round, return_type=float | None)]
+Num = Annotated[float | None, PlainSerializer(round6, return_type=float | None)]
 Interval = tuple[Num, Num] | None
 SCHEMA_VERSION = 1
 
