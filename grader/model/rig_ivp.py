@@ -75,7 +75,8 @@ class FixedOrderRK45(RK45):
     step, its error, the dense output that locates events) in its own loop, in a fixed order. In float64 it
     calls BLAS, whose kernels round differently from one CPU to another, and the instability run grows any
     difference: a benchmark dataset then depended on the machine that generated it. Give ``first_step``:
-    scipy's choice of the first step also goes through BLAS."""
+    scipy's choice of the first step also goes through BLAS. Long double is 80-bit on x86-64 (a software quad on
+    aarch64 Linux, a double on Windows): each architecture is repeatable, with bytes of its own."""
 
     def __init__(self, *args: object, **kwargs: object) -> None:
         super().__init__(*args, **kwargs)  # type: ignore[arg-type]

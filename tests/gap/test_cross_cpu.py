@@ -1,4 +1,5 @@
-"""Cross-CPU determinism of the diagnosis where the loop is fitted from the runs (no friction test).
+"""Cross-CPU determinism of the diagnosis where the loop is fitted from the runs (no friction test), and of the
+benchmark's generator.
 
 ``OPENBLAS_CORETYPE`` forces the BLAS kernels of an older or newer CPU (see tests/core/test_cross_cpu.py).
 Before the loop fit, the smoothing weights and the fitter's step arithmetic were made independent of BLAS, such a
@@ -14,8 +15,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from grader.model.rig_ivp import FixedOrderRK45
+
+from ..core.test_cross_cpu import _core_types
 from .conftest import MakeDataset
 
 CORE_TYPES = ("Prescott", "Nehalem", "Haswell")
@@ -78,11 +83,20 @@ def test_a_benchmark_dataset_is_the_same_bytes_under_every_blas_core_type(tmp_pa
     different instability run under Prescott's kernels than under Haswell's, and a pinned test passed on one CPU
     and failed on another."""
     written = {}
-    for core in CORE_TYPES:
+    for core in _core_types():  # SkylakeX's kernels too where the CPU has AVX-512: the old generator differed there
         subprocess.run([sys.executable, "-c", GENERATE, str(tmp_path / core)], check=True, capture_output=True,
                        env={**os.environ, "OPENBLAS_CORETYPE": core}, timeout=300)
         written[core] = {p.name: p.read_bytes() for p in sorted((tmp_path / core / "ds").iterdir())}
-    first = written[CORE_TYPES[0]]
+    first = written["Prescott"]
     assert {"instability.csv", "manifest.json"} <= first.keys()
     for core, files in written.items():
         assert files == first, f"OPENBLAS_CORETYPE={core} generated different files"
+
+
+def test_the_generators_rk45_sums_its_stages_in_long_double() -> None:
+    """What keeps BLAS out of the generator's integration (scipy's internals: the stage array ``K``, allocated once
+    and written in place): after a step, the stages and the state are long double."""
+    solver = FixedOrderRK45(lambda t, y: -y, 0.0, np.array([1.0, 2.0]), 1.0, first_step=0.1)
+    solver.step()
+    assert solver.K.dtype == np.longdouble and solver.y.dtype == np.longdouble
+    assert solver.dense_output()(0.05).dtype == np.longdouble
