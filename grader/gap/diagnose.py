@@ -27,7 +27,7 @@ from grader.gap.candidates import LEAST_LIMIT, NONE, NOT_FROM_RUNS, Candidate, m
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.objective import RunObjective, objective
-from grader.gap.pairs import NONE_GAP, Second, beyond_none, fit_nrmse, pick_second, replay_shows, scored_of
+from grader.gap.pairs import NONE_GAP, Second, beyond_none, fit_nrmse, pick_second, replay_drops, scored_of
 from grader.gap.runs import GapRun, check_gains, current_demand, cut_note, prepare_runs, start_offset_note
 from grader.gap.schema import Candidate as SchemaCandidate
 from grader.gap.schema import Diagnosis, ReplayInfo, Verdict
@@ -210,14 +210,17 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
             extra = Second(alts[v][2], alts[v][3], alts[v][1], tuple(alts[i] for i in kept))
             replays.append(replay.info(rp2, [a[0] for a in alts], "second_effect"))
         if extra is not None and extra.replay is None and alone and replay.replayable(runs):
-            shown, gap = replay_shows(runs, base.params, found.states[rk.verdict], extra.state, sigma, executor)
-            if not shown:  # the closed loop's second effect, not borne out by the replayed runs: not named
+            dropped = replay_drops(runs, base.params, found.states[rk.verdict], extra.state, sigma, executor)
+            if dropped is not None:  # the closed loop's second effect, not borne out by the replayed runs: not named
+                added = extra.state.candidate.names[-1]
+                gap = dropped.excess[NONE] - dropped.excess[added]
                 how = (f"better (by {by_text(-gap)} in 2·ln likelihood)" if gap < 0 else
                        f"as well (the pair by {by_text(gap)} in 2·ln likelihood, under {replay.EVIDENCE:g})")
-                why = "; ".join(w for w in (why, f"{extra.state.candidate.names[-1]} on top fits the closed-loop runs "
-                                            f"clearly better, but {replay.REPLAYED} the runs follow {names[rk.verdict]} "
-                                            f"alone {how}, so it is not named") if w)
-                extra, why2, replays = None, "", [r for r in replays if r.of != "second_effect"]
+                why = "; ".join(w for w in (why, f"{added} on top fits the closed-loop runs clearly better, but "
+                                            f"{replay.REPLAYED} the runs follow {names[rk.verdict]} alone {how}, so "
+                                            "it is not named") if w)
+                extra, why2 = None, ""
+                replays = [*(r for r in replays if r.of != "second_effect"), dropped]
     cands = [built[i] for i in rk.order]
     y_aug = _model_y(found.states[rk.verdict], runs, base)
     verdict = _verdict(rk, names)

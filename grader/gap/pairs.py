@@ -3,7 +3,7 @@
 :func:`pick_second` searches each other candidate on top of the verdict's fit (greedily, from its optimum) and
 keeps the best one that explains clearly more than the verdict alone; :func:`beyond_none` starts a pair from the
 effect that fits best where the verdict is ``none`` yet the linear model leaves far more than the noise.
-:func:`replay_shows` checks a second effect the closed loop named on the replayed runs. :func:`scored_of` and
+:func:`replay_drops` checks a second effect the closed loop named on the replayed runs. :func:`scored_of` and
 :func:`fit_nrmse` give the scores every ranking of fits uses.
 """
 
@@ -221,19 +221,21 @@ def names_addition(rp: replay.Replay, k: int, n: int, strength: float) -> bool:
             and strength >= SECOND_STRENGTH)
 
 
-def replay_shows(runs: Sequence[GapRun], base: RigParams, alone: FitState, pair: FitState, sigma: float,
-                 executor: Executor | None = None) -> tuple[bool, float]:
-    """Whether the replayed runs bear out a second effect the closed loop's bar named, and by how much (2·ln
-    likelihood): the pair and the first effect ``alone``, fitted again to the replayed runs (reading noise ``sigma``
-    [in]), must be told apart (:data:`replay.EVIDENCE`) with the pair better, unless the replay decides nothing.
+def replay_drops(runs: Sequence[GapRun], base: RigParams, alone: FitState, pair: FitState, sigma: float,
+                 executor: Executor | None = None) -> ReplayInfo | None:
+    """The replay that drops a second effect the closed loop's bar named (``of`` "dropped_second_effect", the
+    first effect alone as ``none``), or None where the replayed runs bear it out: the pair and the first effect
+    ``alone``, fitted again to the replayed runs (reading noise ``sigma`` [in]), must be told apart
+    (:data:`replay.EVIDENCE`) with the pair better, unless the replay decides nothing.
     On runs A, B and C (seeds 300, 400, 500) the verdict alone fitted 198 to more than 10 million worse than the 45
     right pairs the bar named, and 14 and 6 better than 2 of its 10 wrong ones: a delay on top of a hysteresis
     alone (A's 0098) and a spool lag on top of a delay with viscous friction (A's 0276), fits of the noise-driven
     motion that the recorded controller output does not bear out."""
     ends = replay.refitted(runs, base, [pair, alone], sigma, executor=executor)
     rp = replay.scored([e.cost for e in ends], (0, 1), sum(r.n for r in runs))
-    gap = rp.excess[1] - rp.excess[0]
-    return not rp.decides or gap >= replay.EVIDENCE, gap
+    if not rp.decides or rp.excess[1] - rp.excess[0] >= replay.EVIDENCE:
+        return None
+    return replay.info(rp, [pair.candidate.names[-1], NONE], "dropped_second_effect")
 
 
 def better_alone(alone: Scored, bar: Scored) -> bool:

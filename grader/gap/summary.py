@@ -136,11 +136,11 @@ def _which(d: Diagnosis, best: Candidate) -> str:
             why = next(part for part in v.explanation.split("; ") if "friction test" in part)
             text += f" The runs alone rank it with {runner}; {why}."
         text += _replayed(d, "verdict", v.effect)
-        dropped = next((part for part in v.explanation.split("; ") if part.endswith("so it is not named")), None)
+        dropped = next((r for r in d.replay if r.of == "dropped_second_effect"), None)
         if dropped is not None:  # a second effect the closed loop's bar named, not borne out by the replayed runs
-            text += (f" {effect_name(dropped.split(' on top', 1)[0]).capitalize()} on top fits the closed-loop runs "
-                     "clearly better, but not the runs replayed through the controller output the rig recorded, so "
-                     "it is not named.")
+            added = next(e for e in dropped.excess if e != "none")
+            text += (f" {effect_name(added).capitalize()} on top fits the closed-loop runs clearly better, but not the "
+                     "runs replayed through the controller output the rig recorded, so it is not named.")
     if v.indistinguishable_from:
         others = ", ".join(_with_params(d, e) for e in v.indistinguishable_from)
         text += f" The data cannot tell it apart from: {others}; {v.separating_test} would separate them."

@@ -227,16 +227,19 @@ def test_a_second_effect_the_replayed_runs_do_not_bear_out_is_not_named(tmp_path
                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
     """Run A's 0098: a 1.5 mA hysteresis alone. The closed loop's bar names a delay on top; replayed through the
     recorded controller output, the hysteresis alone fits 14 better in 2·ln likelihood than with the delay, so the
-    delay is not named, and the explanation says why. Without that check it is named."""
+    delay is not named; the explanation and the summary say why, and ``replay[]`` holds the comparison. Without
+    that check it is named."""
     label, folder = _seed_300(98, tmp_path)
     assert label == "valve_hysteresis"
     d = analyse(folder).diagnosis
     assert (d.verdict.effect, d.verdict.second_effect) == ("valve_hysteresis", None)
-    assert not any(r.of == "second_effect" for r in d.replay)
+    assert [r.of for r in d.replay if r.of != "verdict"] == ["dropped_second_effect"]
+    dropped = d.replay[-1]
+    assert dropped.decides and dropped.excess["none"] == 0.0 and dropped.excess["sampling_delay"] > EVIDENCE
     assert ("sampling_delay on top fits the closed-loop runs clearly better, but replayed through the controller "
             "output the rig recorded the runs follow valve_hysteresis alone better (by 13.8 in 2·ln likelihood)"
             in d.verdict.explanation)
     assert ("Sampling delay on top fits the closed-loop runs clearly better, but not the runs replayed through the "
             "controller output the rig recorded, so it is not named." in summary(d))
-    monkeypatch.setattr(diagnose, "replay_shows", lambda *args: (True, 0.0))
+    monkeypatch.setattr(diagnose, "replay_drops", lambda *args: None)
     assert analyse(folder).diagnosis.verdict.second_effect == "sampling_delay"

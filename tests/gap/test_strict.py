@@ -263,7 +263,7 @@ def test_a_second_effect_that_only_led_the_first_to_a_better_optimum_is_not_name
     assert abs(_fc(d) - 7.0) < 0.6
     # no refit from the pair's end ever better, and no replay's check: as before them
     monkeypatch.setattr(pairs, "better_alone", lambda alone, bar: False)
-    monkeypatch.setattr(diagnose, "replay_shows", lambda *args: (True, 0.0))
+    monkeypatch.setattr(diagnose, "replay_drops", lambda *args: None)
     d = analyse(folder).diagnosis
     assert d.verdict.second_effect == "valve_saturation" and _fc(d) > 7.9
 
