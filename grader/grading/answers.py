@@ -168,6 +168,9 @@ def read_poles(raw: Any, *, limits: Limits = DEFAULT_LIMITS) -> list[tuple[Gains
         entries = [(_gain_key(k, f"closed_loop_poles key {str(k)[:20]!r}"), v) for k, v in raw.items()]
     elif isinstance(raw, list):
         entries = [_pole_entry(e, i) for i, e in enumerate(raw[: limits.max_gains + 1])]
+    elif isinstance(raw, str):
+        raise AnswerError(f"closed_loop_poles: cannot read {raw[:40]!r}: write one gain a line, as "
+                          "Kp=10: -20+150j, -20-150j, -12 (in a file: a list of {Kp, poles} entries)")
     else:
         raise AnswerError(f"closed_loop_poles: expected a list of {{Kp, poles}} entries, got {_type_name(raw)}")
     if len(entries) > limits.max_gains:
@@ -219,6 +222,10 @@ def gain_units(gain_unit: str) -> dict[str, str]:
 def read_design(raw: Any, *, item: str, gain_unit: str) -> DesignAnswer:
     """``{Kp, Kd, overshoot}`` (pd_design) or ``{Kp, Ki, ramp_error}`` (pi_design)."""
     names, claim_name, claim_unit = DESIGN_FIELDS[item]
+    if isinstance(raw, str):
+        example = ", ".join(f"{n} = …" for n in (*names, claim_name))
+        raise AnswerError(f"{item}: cannot read {raw[:40]!r}: write {example} (in a file: a table with "
+                          f"{', '.join(names)} and {claim_name})")
     if not isinstance(raw, dict):
         raise AnswerError(f"{item}: expected a table with {', '.join(names)} and {claim_name}, got {_type_name(raw)}")
     unknown = set(raw) - {*names, claim_name}

@@ -260,6 +260,8 @@ def parse_expression(text: Any, *, limits: Limits = DEFAULT_LIMITS) -> Expressio
     try:
         tree = ast.parse(body, mode="eval").body
     except SyntaxError as exc:
+        if any(w in (exc.msg or "") for w in ("never closed", "unmatched", "does not match")):  # brackets
+            raise ExpressionError(f"cannot read it: {exc.msg}") from None
         col = f" near column {exc.offset}" if exc.offset else ""
         raise ExpressionError(f"cannot read it{col}; write products with * or a space (e.g. 4*A*beta or 4 A beta) "
                               "and powers with ^") from None

@@ -125,8 +125,8 @@ def _design_text(name: str, m: ModelVerdict, rig: str | None, reveal: bool) -> l
     unit = "%" if name == "pd_design" else "in"
     num = (lambda x: f"{100 * x:.1f} %") if name == "pd_design" else (lambda x: f"{x:.4f} in")  # noqa: E731
     if not m.stable:
-        return ["the loop is unstable with these gains on your identified model."]
-    out = ["the loop is stable on your identified model"]
+        return ["the loop is unstable with these gains on the model identified from your group's lab data."]
+    out = ["the loop is stable on the model identified from your group's lab data"]
     met, unmet = GOALS[name]
     out.append(f"the design {met if m.goal_met else unmet}" +
                (f" ({what} {num(m.achieved)} vs {num(m.baseline)} with P alone)" if reveal else ""))

@@ -23,6 +23,7 @@ from fastapi import FastAPI, Request, UploadFile
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
+from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from grader.errors import GraderError
@@ -68,10 +69,11 @@ async def _json_body(request: Request) -> Any:
 
 
 class BodyLimit:
-    """ASGI middleware: refuse a body over ``limit(path)`` bytes, by Content-Length or while it streams."""
+    """ASGI middleware: refuse a body over ``limit(path)`` bytes, by Content-Length or while it streams;
+    ``shown(path)`` is the limit the 413 names (an upload's own, without the multipart overhead)."""
 
-    def __init__(self, app: ASGIApp, limit: Any) -> None:
-        self.app, self.limit = app, limit
+    def __init__(self, app: ASGIApp, limit: Any, shown: Any) -> None:
+        self.app, self.limit, self.shown = app, limit, shown
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -80,7 +82,7 @@ class BodyLimit:
         cap = self.limit(scope["path"])
         length = dict(scope["headers"]).get(b"content-length", b"0")
         if not length.isdigit() or int(length) > cap:
-            await _too_large(cap)(scope, receive, send)
+            await _too_large(self.shown(scope["path"]))(scope, receive, send)
             return
         seen = 0
 
@@ -115,11 +117,18 @@ def _count_log(result_items: list[dict[str, Any]], elapsed: float) -> None:
 
 
 def _error_handlers(app: FastAPI, xlsx_cap: int) -> None:
-    """One-line JSON errors: 400 bad JSON, 413 too large, 422 unreadable submission, generic 500."""
+    """One-line JSON errors: 400 bad JSON, 404/405 (the routing's own), 413 too large, 422 unreadable submission,
+    generic 500; ``xlsx_cap`` [bytes] is an XLSX upload's own limit."""
 
     @app.exception_handler(BodyTooLarge)
     async def _large(request: Request, exc: BodyTooLarge) -> JSONResponse:
         return _too_large(xlsx_cap if request.url.path == "/api/check-file" else MAX_BODY)
+
+    @app.exception_handler(HTTPException)
+    async def _http(request: Request, exc: HTTPException) -> JSONResponse:
+        text = {404: f"not found: {request.url.path[:100]}",
+                405: f"{request.method} is not allowed on {request.url.path[:100]}"}.get(exc.status_code, exc.detail)
+        return _error(exc.status_code, text, **(exc.headers or {}))
 
     @app.exception_handler(BadJSON)
     async def _bad_json(request: Request, exc: BadJSON) -> JSONResponse:
@@ -155,8 +164,9 @@ def create_app(service: CheckService, options: WebOptions = WebOptions(), pool: 
     checks = RateLimiter(options.checks_per_minute, options.burst)
     previews = RateLimiter(options.checks_per_minute * 10, options.burst * 10)
     lanes = anyio.CapacityLimiter(options.threads)
-    xlsx_cap = service.opts.limits.max_xlsx_bytes + MULTIPART_OVERHEAD
-    app.add_middleware(BodyLimit, limit=lambda path: xlsx_cap if path == "/api/check-file" else MAX_BODY)
+    xlsx_cap = service.opts.limits.max_xlsx_bytes
+    app.add_middleware(BodyLimit, limit=lambda path: xlsx_cap + MULTIPART_OVERHEAD if path == "/api/check-file"
+                       else MAX_BODY, shown=lambda path: xlsx_cap if path == "/api/check-file" else MAX_BODY)
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
     page = render_page(service.opts.rubric, service.stations())
 
@@ -165,8 +175,9 @@ def create_app(service: CheckService, options: WebOptions = WebOptions(), pool: 
     def limited(limiter: RateLimiter, request: Request) -> JSONResponse | None:
         if limiter.allow(_client(request)):
             return None
-        return _error(429, f"too many requests: at most {limiter.per_minute:g} a minute; wait and try again",
-                      **{"Retry-After": str(limiter.retry_after())})
+        wait = limiter.retry_after()
+        return _error(429, f"too many requests: at most {limiter.per_minute:g} a minute; wait {wait} s and try again",
+                      **{"Retry-After": str(wait)})
 
     async def run_check(method: str, *args: Any) -> JSONResponse:
         start = time.perf_counter()
@@ -177,7 +188,7 @@ def create_app(service: CheckService, options: WebOptions = WebOptions(), pool: 
         _count_log(doc["items"], time.perf_counter() - start)
         return JSONResponse(doc)
 
-    @app.get("/", response_class=HTMLResponse)
+    @app.api_route("/", methods=["GET", "HEAD"], response_class=HTMLResponse)
     async def index() -> HTMLResponse:
         return HTMLResponse(page, headers={"Content-Security-Policy": "default-src 'self'; object-src 'none'"})
 

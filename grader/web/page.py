@@ -43,15 +43,15 @@ def _hint(name: str, rubric: Rubric) -> str:
 def _field(name: str, rubric: Rubric) -> str:
     spec, e = ITEMS[name], html.escape
     box = ("<textarea id='a-{n}' name='{n}' rows='3' data-testid='answer-{n}' data-kind='{k}' "
-           "aria-describedby='h-{n}' spellcheck='false'></textarea>" if spec.kind == "poles" else
+           "aria-describedby='h-{n} r-{n}' spellcheck='false'></textarea>" if spec.kind == "poles" else
            "<input id='a-{n}' name='{n}' type='text' data-testid='answer-{n}' data-kind='{k}' "
-           "aria-describedby='h-{n}' autocomplete='off' spellcheck='false'>")
+           "aria-describedby='h-{n} r-{n}' autocomplete='off' spellcheck='false'>")
     preview = (f"<div class='preview' id='p-{e(name)}' aria-live='polite'></div>"
                if spec.kind in ("expression", "quantity") else "")
     return (f"<div class='item'><label for='a-{e(name)}'><code>{e(name)}</code> {e(spec.description)}</label>"
             + box.format(n=e(name), k=e(spec.kind))
             + f"<small id='h-{e(name)}' class='hint'>{e(_hint(name, rubric))}</small>{preview}"
-            f"<div class='result' data-testid='result-{e(name)}' aria-live='polite'></div></div>")
+            f"<div class='result' id='r-{e(name)}' data-testid='result-{e(name)}'></div></div>")
 
 
 def _groups(rubric: Rubric) -> list[tuple[str, list[str]]]:

@@ -37,10 +37,10 @@ def _expression(text: str) -> dict[str, Any]:
     return {"latex": latex, "read_as": ast.unparse(expr.tree).replace("**", "^")}
 
 
-def _quantity(text: str, unit: str | None) -> dict[str, Any]:
+def _quantity(item: str, text: str, unit: str | None) -> dict[str, Any]:
     from grader.units import parse_quantity
 
-    q = parse_quantity(text, where="answer", default_unit=unit)
+    q = parse_quantity(text, where=item, default_unit=unit)
     return {"latex": f"{q:~L}" if str(q.units) != "dimensionless" else f"{q.magnitude:g}",
             "read_as": f"{q:~P}"}
 
@@ -56,6 +56,6 @@ def preview(item: str, text: str) -> dict[str, Any]:
     if spec.kind == "quantity" and not any(c.isdigit() for c in text):
         return {}  # words (e.g. "not reachable") are read by the grader, not previewed
     try:
-        return _expression(text) if spec.kind == "expression" else _quantity(text, spec.unit)
+        return _expression(text) if spec.kind == "expression" else _quantity(item, text, spec.unit)
     except GraderError as exc:
         return {"error": str(exc)}

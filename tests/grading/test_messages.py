@@ -32,6 +32,12 @@ def _check(tmp_path: Path, capsys: pytest.CaptureFixture[str], **answers: object
     ({"Kq": None, "kq": "0.03851 in^3/s/mA"}, "note: answer 'kq' was read as 'Kq'"),
     ({"closed_loop_poles": [{"Kp": 10, "poles": ["-1"]}, {"Kp": 10, "Ki": 5, "poles": ["x"]}]},
      "entry 2 (Kp = 10, Ki = 5, Kd = 0), pole 1: cannot read 'x' as a pole"),
+    ({"closed_loop_poles": "Kp=10 -20+150j"},  # what the page sends when it cannot split the text
+     "closed-loop poles: could not read your answer: cannot read 'Kp=10 -20+150j': write one gain a line, as "
+     "Kp=10: -20+150j, -20-150j, -12"),
+    ({"pd_design": "hello"}, "PD design: could not read your answer: cannot read 'hello': write Kp = …, Kd = …, overshoot = …"),
+    ({"char_poly": "1/(s^2+"}, "characteristic polynomial: could not read your answer: cannot read it: '(' was never closed"),
+    ({"char_poly": "s^3 + * 2"}, "write products with * or a space"),
 ])
 def test_check_feedback_is_plain(answers: dict, expected: str, tmp_path: Path,
                                  capsys: pytest.CaptureFixture[str]) -> None:

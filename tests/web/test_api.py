@@ -104,6 +104,33 @@ def test_over_one_megabyte_is_413_by_length_and_while_streaming(client: TestClie
     assert client.post("/api/check-file", files=big_json).status_code == 413
 
 
+def test_an_upload_over_its_limit_is_told_the_file_limit(service: CheckService, client: TestClient) -> None:
+    """By Content-Length, the upload's own limit (not the limit plus the multipart overhead the server allows)."""
+    cap = service.opts.limits.max_xlsx_bytes
+    r = client.post("/api/check-file", content=b"x", headers={"Content-Length": str(cap + 1_000_000),
+                                                              "Content-Type": "multipart/form-data; boundary=b"})
+    assert r.status_code == 413 and r.json()["error"] == f"request body over the limit of {cap / 1e6:g} MB"
+
+
+@pytest.mark.parametrize(("method", "path", "status", "words"), [
+    ("GET", "/nope", 404, "not found: /nope"),
+    ("GET", "/static/nope.js", 404, "not found: /static/nope.js"),
+    ("GET", "/api/check", 405, "GET is not allowed on /api/check"),
+])
+def test_routing_errors_are_one_line_json_errors(client: TestClient, method: str, path: str, status: int,
+                                                 words: str) -> None:
+    """The ``{"error": ...}`` shape of every other error (docs/reference/web-api.md), not FastAPI's ``detail``."""
+    r = client.request(method, path)
+    assert r.status_code == status and r.json() == {"error": words}
+    if status == 405:
+        assert r.headers["Allow"] == "POST"
+
+
+def test_head_of_the_page(client: TestClient) -> None:
+    r = client.head("/")
+    assert r.status_code == 200 and r.headers["content-type"].startswith("text/html") and not r.content
+
+
 def test_upload_type_and_broken_files(client: TestClient) -> None:
     r = client.post("/api/check-file", files={"file": ("run.exe", b"MZ")})
     assert r.status_code == 415 and "unknown submission type" in r.json()["error"]
@@ -142,6 +169,7 @@ def test_rate_limit_gives_429(service: CheckService) -> None:
     assert codes == [200, 200, 200, 429, 429]
     r = client.post("/api/check", json={"answers": {}})
     assert "too many requests" in r.json()["error"] and r.headers["Retry-After"] == "1"
+    assert "wait 1 s" in r.json()["error"]
 
 
 def test_rate_limiter_refills_per_client() -> None:

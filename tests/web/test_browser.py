@@ -13,6 +13,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
 import uvicorn
@@ -66,7 +67,8 @@ def test_page_in_chromium(base_url: str, kc: KeyContext, key_numbers: Callable[[
         page.get_by_test_id("check").focus()
         page.keyboard.press("Enter")  # usable from the keyboard
         for item, (_, status) in TYPED.items():
-            expect(page.get_by_test_id(f"result-{item}")).to_contain_text(re.compile(rf"^{status}\b"))
+            shown = status.replace("_", " ")  # the status code in words
+            expect(page.get_by_test_id(f"result-{item}")).to_contain_text(re.compile(rf"^{shown}\b"))
         assert "Kq" in page.get_by_test_id("result-Kq").inner_text()
         html = page.content()
         page.set_viewport_size({"width": 360, "height": 800})  # phone width: nothing wider than the screen
@@ -79,3 +81,55 @@ def test_page_in_chromium(base_url: str, kc: KeyContext, key_numbers: Callable[[
         assert not {t for t in key_numbers(kc) if t in numbers}
         assert not any(r in text.replace(" ", "") for r in reference_texts())
     assert len(bodies) >= 4  # page, app.js, app.css, previews and the check were all inspected
+
+
+def test_page_files_failures_focus_and_no_javascript(base_url: str, tmp_path: Path) -> None:
+    """A chosen file is said to replace the typed answers and can be removed; a failed check leaves no result of the
+    one before; a field reached by Tab is never hidden under the sticky Check bar; without JavaScript nothing is
+    sent (the answers would otherwise land in the URL and the access log)."""
+    from playwright.sync_api import expect, sync_playwright
+
+    notes = tmp_path / "notes.txt"
+    notes.write_text("not a submission", encoding="utf-8")
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True)
+        page = browser.new_page(viewport={"width": 1280, "height": 900})
+        page.goto(base_url + "/")
+        page.get_by_test_id("answer-Kq").fill("0.0385 in^3/s/mA")
+        page.get_by_test_id("check").click()
+        expect(page.get_by_test_id("result-Kq")).not_to_be_empty()
+        page.get_by_test_id("upload").set_input_files(str(notes))
+        expect(page.get_by_test_id("file-note")).to_be_visible()
+        page.get_by_test_id("check").click()
+        expect(page.locator("#status")).to_contain_text("unknown submission type")
+        expect(page.get_by_test_id("result-Kq")).to_be_empty()
+        page.get_by_test_id("clear-file").click()
+        expect(page.get_by_test_id("file-note")).to_be_hidden()
+        page.get_by_test_id("check").click()
+        expect(page.locator("#status")).to_contain_text("checked:")
+        expect(page.get_by_test_id("result-Kq")).not_to_be_empty()
+
+        page.evaluate("window.scrollTo(0, 0)")
+        page.locator("#station").focus()
+        hidden, seen = [], 0
+        for _ in range(60):
+            page.keyboard.press("Tab")
+            where = page.evaluate("""() => { const a = document.activeElement, bar = document.querySelector('.actions');
+                if (!a || a === document.body || bar.contains(a)) return null;
+                return [a.id, a.getBoundingClientRect().bottom, bar.getBoundingClientRect().top]; }""")
+            if where is None:
+                continue
+            seen += 1
+            if where[1] > where[2]:
+                hidden.append(where[0])
+        assert seen >= 15 and not hidden, hidden
+
+        quiet = browser.new_context(java_script_enabled=False).new_page()
+        quiet.goto(base_url + "/")
+        expect(quiet.locator(".nojs")).to_be_visible()
+        expect(quiet.get_by_test_id("check")).to_be_disabled()
+        quiet.get_by_test_id("answer-Kq").fill("0.0385 in^3/s/mA")
+        quiet.get_by_test_id("answer-Kq").press("Enter")
+        quiet.wait_for_timeout(300)
+        assert "?" not in quiet.url and "0.0385" not in quiet.url
+        browser.close()

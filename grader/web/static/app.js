@@ -69,9 +69,9 @@
     if (!text.includes("=")) return text;
     const out = {};
     for (const part of text.split(/[,;\n]+/).map(s => s.trim()).filter(Boolean)) {
-      const m = part.match(/^([A-Za-z_]+)\s*=\s*(.+)$/);
+      const m = part.match(/^([A-Za-z_]+)\s*=\s*(.*)$/);
       if (!m) return text;
-      out[m[1]] = m[2].trim();
+      if (m[2].trim()) out[m[1]] = m[2].trim();  // "Kd =" left blank: the check says Kd is missing
     }
     return out;
   }
@@ -87,20 +87,28 @@
     return out;
   }
 
+  // Results of the last check, or none (data = {}): each box shows its item's status and feedback, its input is marked
+  // aria-invalid when unreadable, and the status line counts the statuses (the boxes themselves are not live regions).
   function showResults(data) {
     for (const el of form.querySelectorAll(".result")) { el.textContent = ""; el.className = "result"; }
+    for (const el of form.querySelectorAll("[data-kind]")) el.removeAttribute("aria-invalid");
+    const counts = {};
     for (const it of data.items || []) {
+      counts[it.status] = (counts[it.status] || 0) + 1;
       const el = form.querySelector('[data-testid="result-' + CSS.escape(it.item) + '"]');
       if (!el) continue;
       const word = document.createElement("span");
       word.className = "status";
-      word.textContent = it.status;
+      word.textContent = it.status.replace(/_/g, " ");
       el.append(word, document.createTextNode(" " + it.feedback));
       el.classList.add(it.status);
+      const input = document.getElementById("a-" + it.item);
+      if (input && it.status === "invalid") input.setAttribute("aria-invalid", "true");
     }
     const notes = document.getElementById("notes");
     notes.textContent = "";
     for (const n of data.notes || []) { const li = document.createElement("li"); li.textContent = n; notes.append(li); }
+    return Object.entries(counts).map(([k, v]) => v + " " + k.replace(/_/g, " ")).join(", ");
   }
 
   async function check(ev) {
@@ -108,6 +116,7 @@
     const button = document.getElementById("check");
     const file = document.getElementById("upload").files[0];
     button.disabled = true;
+    showResults({});  // a failed check must not leave the previous results looking current
     status.className = "";
     status.textContent = "checking…";
     try {
@@ -121,8 +130,9 @@
         [r, data] = await postJSON("api/check", {station: document.getElementById("station").value, answers: answers()});
       }
       if (!r.ok) { status.className = "error"; status.textContent = data.error || ("error " + r.status); return; }
-      showResults(data);
-      status.textContent = "checked " + (data.items || []).length + " items";
+      const summary = showResults(data);
+      const notes = (data.notes || []).length ? "; see the notes below" : "";
+      status.textContent = (file ? "checked the file " + file.name : "checked") + ": " + (summary || "no items") + notes;
     } catch (e) {
       status.className = "error";
       status.textContent = "could not reach the server";
@@ -131,7 +141,13 @@
     }
   }
 
+  const upload = document.getElementById("upload"), fileNote = document.getElementById("file-note");
+  function showFile() { fileNote.hidden = !upload.files.length; }
+  upload.addEventListener("change", showFile);
+  document.getElementById("clear-file").addEventListener("click", () => { upload.value = ""; showFile(); upload.focus(); });
+  showFile();  // a file the browser kept across a reload
   form.addEventListener("submit", check);
+  document.getElementById("check").disabled = false;  // without JavaScript the form cannot be sent (see <noscript>)
   for (const el of form.querySelectorAll('[data-kind="expression"], [data-kind="quantity"]')) {
     el.addEventListener("input", () => schedulePreview(el));
   }
