@@ -5,7 +5,10 @@ events and :data:`MAX_DEPTH` levels, and nesting or numbers Python cannot read r
 
 Plain YAML scalars are read as YAML 1.2's core schema reads them (:class:`CoreLoader`), not as PyYAML's YAML 1.1:
 ``1:30`` is text, not 90 (base 60); ``010`` is 10, not 8 (octal); ``1_000``, ``yes``, ``no``, ``on``, ``off``,
-``2024-05-01`` and ``=`` are text; ``1e5`` is a number."""
+``2024-05-01`` and ``=`` are text; ``1e5`` is a number.
+
+A key given twice in one object or mapping is refused (:class:`DuplicateKey`): JSON parsers and PyYAML keep the last
+one without a word, so ``{"Kq": "1 in^3/s/mA", "Kq": "0.04 in^3/s/mA"}`` would be graded on the second answer."""
 
 from __future__ import annotations
 
@@ -34,6 +37,20 @@ _WHAT = {"int": "an integer", "float": "a number", "bool": "true or false", "tim
 _TOO_LONG = "a number is too long (write it with fewer digits)"
 
 
+class DuplicateKey(GraderError):
+    """A JSON object or YAML mapping that gives one key twice."""
+
+
+def unique_object(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """``json.loads``' ``object_pairs_hook``: the object as a dict, refusing a key given twice."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise DuplicateKey(f"key {key[:40]!r} appears twice in one object (the second would replace the first)")
+        out[key] = value
+    return out
+
+
 class CoreLoader(yaml.SafeLoader):
     """PyYAML's safe loader with YAML 1.2's core schema for booleans, integers and floats. A value its tag cannot
     hold (``!!int 1:30``, ``!!float ''``) is a :class:`yaml.YAMLError` naming it."""
@@ -46,6 +63,20 @@ class CoreLoader(yaml.SafeLoader):
             what = (_TOO_LONG if isinstance(exc, ValueError) and "digits" in str(exc)  # Python's int-digit limit
                     else f"{text[:40]!r} is not {_WHAT.get(tag, 'a ' + tag)}")
             raise yaml.constructor.ConstructorError(None, None, what, node.start_mark) from None
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        """A mapping, refusing a key written twice in it (a merge ``<<`` may still be overridden, as YAML allows)."""
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            if not isinstance(key_node, yaml.ScalarNode) or key_node.tag == _MERGE:
+                continue
+            key = self.construct_object(key_node)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {str(key)[:40]!r} appears twice in one mapping (line {key_node.start_mark.line + 1})",
+                    key_node.start_mark)
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
 
     def construct_yaml_int(self, node: yaml.ScalarNode) -> int:
         text = self.construct_scalar(node)
@@ -85,7 +116,7 @@ def parse(name: str, text: str, *, as_json: bool, max_yaml_events: int = MAX_YAM
     kind = "JSON" if as_json else "YAML"
     try:
         if as_json:
-            return json.loads(text)
+            return json.loads(text, object_pairs_hook=unique_object)
         depth = 0
         for n, event in enumerate(yaml.parse(text, Loader=CoreLoader)):
             if isinstance(event, yaml.AliasEvent):
@@ -98,6 +129,8 @@ def parse(name: str, text: str, *, as_json: bool, max_yaml_events: int = MAX_YAM
         return load_yaml(text)
     except json.JSONDecodeError as exc:
         raise GraderError(f"{name}: not valid JSON: {_json_fault(exc)}") from None
+    except DuplicateKey as exc:
+        raise GraderError(f"{name}: {exc}") from None
     except yaml.YAMLError as exc:
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise GraderError(f"{name}: not valid YAML: {first}") from None

@@ -128,6 +128,10 @@ def _verdict(p: ProblemReport) -> str:
     """One honest paragraph on what this comparison can and cannot show."""
     treated, control = p.groups
     if p.welch_p is None or p.hedges_g is None or p.hedges_g_ci is None:
+        if min(treated.n, control.n) >= 2 and treated.sd == 0 and control.sd == 0:
+            return (f"{p.problem}: within each group every student scored the same "
+                    f"({treated.mean:.1f} % and {control.mean:.1f} %, n = {treated.n} and {control.n}); "
+                    "with no spread there is nothing to test.")
         return f"{p.problem}: too few students in a group (n = {treated.n} and {control.n}) to compare."
     low, high = p.hedges_g_ci
     text = (

@@ -23,7 +23,7 @@ from grader.assess.views import (
     survey_summary,
 )
 from grader.exports.atomic import workbook_bytes
-from grader.exports.cells import literal_text
+from grader.exports.cells import literal_text, xlsx_text
 from grader.exports.sheets import fit_columns
 
 _FORMATS = {"int": "0", "pct": "0.0", "num": "0.000", "p": "0.0000", "text": "@"}
@@ -41,17 +41,18 @@ def _write_views(sheet: Worksheet, views: Sequence[View], start: int = 1) -> int
     the next free row."""
     row = start
     for view in views:
-        sheet.cell(row=row, column=1, value=view.title).font = _TITLE
+        sheet.cell(row=row, column=1, value=xlsx_text(view.title)).font = _TITLE
         row += 1
         for col, header in enumerate(view.headers, start=1):
-            cell = sheet.cell(row=row, column=col, value=header)
+            cell = sheet.cell(row=row, column=col, value=xlsx_text(header))
             cell.font, cell.alignment = _BOLD, Alignment(wrap_text=True, vertical="bottom")
         row += 1
         if sheet.freeze_panes is None:
             sheet.freeze_panes = f"A{row}"
         for values in view.rows:
             for col, (value, kind) in enumerate(zip(values, view.kinds, strict=True), start=1):
-                cell = sheet.cell(row=row, column=col, value=round6(value) if isinstance(value, float) else value)
+                shown = round6(value) if isinstance(value, float) else xlsx_text(value)
+                cell = sheet.cell(row=row, column=col, value=shown)
                 cell.number_format = _FORMATS["int" if isinstance(value, int) else kind]
             row += 1
         row += 1
@@ -60,10 +61,10 @@ def _write_views(sheet: Worksheet, views: Sequence[View], start: int = 1) -> int
 
 def _write_paragraphs(sheet: Worksheet, title: str, lines: Iterable[str], start: int, wrap: bool = True) -> int:
     """Write a titled list of sentences in column A (wrapped, or overflowing to the right)."""
-    sheet.cell(row=start, column=1, value=title).font = _TITLE
+    sheet.cell(row=start, column=1, value=xlsx_text(title)).font = _TITLE
     row = start + 1
     for line in lines:
-        cell = sheet.cell(row=row, column=1, value=line)
+        cell = sheet.cell(row=row, column=1, value=xlsx_text(line))
         cell.alignment = Alignment(wrap_text=wrap, vertical="top")
         row += 1
     return row + 1

@@ -87,7 +87,25 @@ def _data_rows(table: Table, form: Form) -> tuple[_Rows, list[str]]:
             notes.append(f"{skipped} Qualtrics preview/test/spam responses were left out.")
     if not rows.records:
         raise AssessmentError(f"{table.name}: the {FORM_NAMES[form]} has a header but no responses")
+    _reject_repeated_respondents(rows)
     return rows, notes
+
+
+#: Columns that identify a response: the template's ``respondent``, Qualtrics' ``ResponseId``.
+RESPONDENT_COLUMNS = ("respondent", "responseid")
+
+
+def _reject_repeated_respondents(rows: _Rows) -> None:
+    """A response id given on two rows (a row pasted twice) would count one respondent twice: refused, naming both
+    rows. Rows without an id are anonymous and may repeat."""
+    for col in (i for i, h in enumerate(rows.headers) if normalize(h) in RESPONDENT_COLUMNS):
+        first: dict[str, int] = {}
+        for number, row in rows.records:
+            rid = row[col].strip() if col < len(row) else ""
+            if rid and rid in first:
+                raise AssessmentError(f"{rows.table.name}: row {number}: respondent {rid[:40]!r} is also on row "
+                                      f"{first[rid]}; each response once")
+            first.setdefault(rid, number)
 
 
 def _drop_qualtrics_previews(rows: _Rows) -> tuple[_Rows, int]:

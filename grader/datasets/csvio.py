@@ -132,6 +132,11 @@ def _records(path: Path, text: str) -> list[tuple[int, list[str]]]:
     return out
 
 
+#: Largest magnitude of a reading in internal units (s, in, V, mA, psi, lbf, in³/s): far beyond any rig, and small
+#: enough that sums of squares over a run cannot overflow.
+LARGEST = 1e12
+
+
 def _convert(path: Path, header: list[tuple[str, float, str]], body: list[tuple[int, list[str]]]) -> Table:
     """The (line number in the file, cells) rows as internal-unit arrays: whole columns at once (numpy reads text as
     ``float`` does), and cell by cell where that finds a fault, to name the first faulty cell."""
@@ -148,7 +153,7 @@ def _convert(path: Path, header: list[tuple[str, float, str]], body: list[tuple[
                     values = np.array(columns[j], dtype=np.float64) * header[j][1]
             except ValueError:
                 break
-            if not np.isfinite(values).all():
+            if not np.isfinite(values).all() or np.max(np.abs(values), initial=0.0) > LARGEST:
                 break
             out[header[j][0]] = values
         else:
@@ -175,6 +180,8 @@ def _convert_cells(path: Path, header: list[tuple[str, float, str]], body: list[
             if not math.isfinite(value) or not math.isfinite(value * header[j][1]):
                 raise DatasetError(f"{where} is not a finite number" + (
                     f" once converted to {header[j][2]}" if math.isfinite(value) else ""))
+            if abs(value * header[j][1]) > LARGEST:
+                raise DatasetError(f"{where} is too large for a reading (over {LARGEST:g} {header[j][2]})")
             data[i, j] = value
     return {name: data[:, j] * scale for j, (name, scale, _) in enumerate(header) if not math.isnan(scale)}
 

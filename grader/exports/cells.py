@@ -1,7 +1,9 @@
 """Spreadsheet-injection guard for every text cell the grader writes (XLSX and CSV).
 
 Text that starts with ``= + - @`` TAB or CR can be run as a formula by a spreadsheet
-(OWASP "CSV injection"). Only ``str`` values are touched: numbers stay numbers.
+(OWASP "CSV injection"). XLSX (XML 1.0) cannot hold the other C0 control characters at all
+(openpyxl refuses the cell): :func:`xlsx_text` shows each as U+FFFD. Only ``str`` values are
+touched: numbers stay numbers.
 """
 
 from __future__ import annotations
@@ -9,6 +11,7 @@ from __future__ import annotations
 from typing import Any
 
 from openpyxl import Workbook
+from openpyxl.cell.cell import ILLEGAL_CHARACTERS_RE
 
 FORMULA_LEADS = ("=", "+", "-", "@", "\t", "\r")
 
@@ -25,6 +28,13 @@ def csv_text(value: Any) -> Any:
         return value
     text = "'" + value if risky(value) else value
     return text.replace("\r\n", "\n").replace("\r", "\n")
+
+
+def xlsx_text(value: Any) -> Any:
+    """An XLSX cell value: control characters XML cannot hold (C0 but TAB, LF, CR) shown as U+FFFD, so that a
+    student's or respondent's stray control character is visible in the sheet instead of failing the whole
+    workbook; non-text unchanged."""
+    return ILLEGAL_CHARACTERS_RE.sub("\ufffd", value) if isinstance(value, str) else value
 
 
 def literal_text(wb: Workbook) -> Workbook:

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 
 from openpyxl import Workbook
 
-from grader.exports.cells import literal_text
+from grader.exports.cells import literal_text, xlsx_text
 from grader.exports.sheets import fit_columns, header_row
 from grader.grading.results import STATUSES, SubmissionResult
 
@@ -21,9 +21,10 @@ def _grades_sheet(wb: Workbook, results: Sequence[SubmissionResult], items: list
     ws.append(["submission_id", "students", "SIS user ids", "sections", "valid", "score", "max_score", *items, "error"])
     for r in results:
         points = {i.item: i.points for i in r.items}
-        ws.append([r.submission_id, "; ".join(s.name for s in r.students), "; ".join(s.sis_user_id for s in r.students),
-                   "; ".join(sorted({s.section for s in r.students if s.section})), "yes" if r.valid else "NO",
-                   r.score, r.max_score, *(points.get(n) for n in items), r.error or ""])
+        ws.append([xlsx_text(v) for v in (
+            r.submission_id, "; ".join(s.name for s in r.students), "; ".join(s.sis_user_id for s in r.students),
+            "; ".join(sorted({s.section for s in r.students if s.section})), "yes" if r.valid else "NO",
+            r.score, r.max_score, *(points.get(n) for n in items), r.error or "")])
 
 
 def item_statistics(results: Sequence[SubmissionResult], items: list[str]) -> list[list[object]]:

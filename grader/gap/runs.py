@@ -26,6 +26,7 @@ from scipy.ndimage import convolve1d
 from scipy.signal import savgol_coeffs
 
 from grader.datasets import Dataset, Run
+from grader.datasets.sampling import sample_times
 from grader.errors import DiagnosisError
 from grader.gap import glitches
 from grader.model.params import Controller
@@ -93,39 +94,6 @@ def command_start(t: Array, r: Array) -> float:
     """Time [s] at which the command first changes."""
     moved = np.flatnonzero(np.abs(r - r[0]) > 1e-12)
     return float(t[moved[0]]) if moved.size else float(t[0])
-
-
-def _printed_resolution(t: Array) -> float:
-    """The resolution [s] the time stamps were printed with: the median over rows of the largest power of ten from
-    1 s down to 1 ns of which a stamp is a multiple (a logger writing ``%.3f`` rounds a 1.44 ms grid to whole
-    milliseconds; a stamp that happens to end in zeros, as 1.000, shows a coarser one than the file's)."""
-    res = np.zeros(t.size)
-    for d in range(9, -1, -1):
-        q = 10.0**-d
-        res[np.abs(t / q - np.round(t / q)) < 1e-6] = q
-    return float(np.median(res))
-
-
-def sample_times(run: Run, T: float) -> Array:
-    """The run's time stamps [s] as controller samples every ``T``: as recorded where each row lies within 5 % of
-    T of its sample; else the grid t₀ + k·T (t₀ centred in the offsets every row allows), where one grid takes
-    every row within half the stamps' printed resolution plus 5 % of T (never half a sample). Raises otherwise, naming
-    the first row no grid takes with the rows before it (a missing or repeated sample)."""
-    t, dt = run.t, np.diff(run.t)
-    if abs(float(np.median(dt)) - T) <= 0.01 * T and np.max(np.abs(dt - T)) <= 0.05 * T:
-        return t
-    k = np.arange(t.size)
-    off, tol = t - k * T, min(0.05 * T + 0.5 * _printed_resolution(t), 0.499 * T)
-    lo, hi = np.maximum.accumulate(off - tol), np.minimum.accumulate(off + tol)  # the offsets rows 0..k allow
-    broken = np.flatnonzero(lo > hi)
-    if broken.size == 0:
-        return 0.5 * (lo[-1] + hi[-1]) + k * T
-    i = int(broken[0])
-    raise DiagnosisError(
-        f"run {run.name} ({run.spec.file}): rows are {(t[-1] - t[0]) / (t.size - 1) * 1e3:.4g} ms apart on average, "
-        f"not evenly at the manifest's sample_time of {T * 1e3:g} ms (row {run.line(i)} is {dt[i - 1] * 1e3:.4g} ms "
-        "after the one before); the diagnosis needs one row per controller sample"
-    )
 
 
 def _on_grid(raw: Run, T: float) -> tuple[Run, GapRun, list[str]]:

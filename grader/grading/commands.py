@@ -71,15 +71,17 @@ def _grade(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from grader.exports.bundle import write_outputs
-    from grader.grading.pipeline import expand_inputs, grade_batch, read_all
+    from grader.grading.pipeline import expand_inputs, grade_batch, passed_over, read_all
     from grader.grading.submissions import SUFFIXES
 
     out = output_folder(args.out)
     rubric = _rubric(args)
     opts = _options(args, rubric, reveal=True)
     paths = expand_inputs(args.submissions)
+    skipped = passed_over(args.submissions)
     if not paths:
-        raise SubmissionError("no submission files found (" + ", ".join(SUFFIXES) + ")")
+        raise SubmissionError("no submission files found (" + ", ".join(SUFFIXES) + ")" +
+                              (f"; not submissions: {', '.join(f.name for f in skipped[:5])}" if skipped else ""))
     console = Console(stderr=True)
     subs = read_all(paths, opts)
     results: list[SubmissionResult] = []
@@ -94,6 +96,10 @@ def _grade(args: argparse.Namespace) -> int:
                   assignment_id=args.assignment_id or rubric.assignment.id)
     Console().print(summary_table(results, rubric))
     print(f"wrote {len(results)} results to {args.out}/ (grades.csv, report.json, gradebook.xlsx, results/, feedback/)")
+    if skipped:
+        names = ", ".join(f.name for f in skipped[:10]) + (f" and {len(skipped) - 10} more" if len(skipped) > 10 else "")
+        print(f"note: {len(skipped)} file(s) in the folders given are not submissions ({', '.join(SUFFIXES)}) and were "
+              f"not graded: {names}", file=sys.stderr)
     _warn_duplicates(results)
     invalid = [r for r in results if not r.valid]
     if invalid:

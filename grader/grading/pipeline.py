@@ -31,12 +31,24 @@ from grader.units import quantity_to_float
 Read = Submission | SubmissionResult  # a read submission, or the invalid result of one that could not be read
 
 
+def _matches(text: str) -> list[Path]:
+    """What one input names: its glob's matches, or the path itself."""
+    return [Path(m) for m in sorted(glob.glob(text, recursive=True))] if any(c in text for c in "*?[") else [Path(text)]
+
+
+def passed_over(inputs: Sequence[str]) -> list[Path]:
+    """Files in the folders among ``inputs`` that :func:`expand_inputs` leaves out: not a submission type (hidden
+    files aside), so that a batch can say which were not graded (a group's ``.ods`` or ``.xls``)."""
+    out = {f for text in inputs for m in _matches(text) if m.is_dir() for f in m.iterdir()
+           if f.is_file() and f.suffix.lower() not in SUFFIXES and not f.name.startswith(".")}
+    return sorted(out, key=lambda f: (str(f.parent), f.name))
+
+
 def expand_inputs(inputs: Sequence[str]) -> list[Path]:
     """Files, folders (their submission files, not recursive) and globs -> sorted unique files."""
     found: set[Path] = set()
     for text in inputs:
-        p = Path(text)
-        matches = [Path(m) for m in sorted(glob.glob(text, recursive=True))] if any(c in text for c in "*?[") else [p]
+        matches = _matches(text)
         if not matches:
             raise SubmissionError(f"{text}: no file matches")
         for m in matches:

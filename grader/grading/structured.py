@@ -45,12 +45,13 @@ def same_set(given: list[complex], ref: list[complex], rel: float, absolute: flo
 
 
 def _score(answer: PoleRuns, ref: PoleRuns, rel: float, absolute: float) -> list[tuple[str, bool]]:
-    """The gains (as text) whose pole sets are wrong, each with whether the student gave poles there."""
+    """The gains (as text) whose pole sets are wrong, each with whether the student gave poles there. Runs repeat
+    gains, so a student may give a gain's poles more than once: every set given there must be right."""
     bad = []
     for g, poles in ref:
-        mine = next((p for h, p in answer if h.matches(g)), None)
-        if mine is None or not same_set(mine, poles, rel, absolute):
-            bad.append((_gain_text(g), mine is not None))
+        mine = [p for h, p in answer if h.matches(g)]
+        if not mine or not all(same_set(m, poles, rel, absolute) for m in mine):
+            bad.append((_gain_text(g), bool(mine)))
     return bad
 
 
@@ -90,9 +91,11 @@ def check_poles(name: str, raw: Any, env: CheckEnv, done: Mapping[str, ItemResul
     absolute = float(item.tolerance.absolute or 0.0) if not isinstance(item.tolerance.absolute, str) else \
         quantity_to_float(item.tolerance.absolute, "1/s", where="tolerance.absolute")
     bad = _score(answer, ref, rel, absolute)
-    detail = {"wrong_gains": [g for g, _ in bad], "gains": len(ref)}
+    stray = [_gain_text(g) for g, _ in answer if not any(g.matches(h) for h, _ in ref)]  # the student's own gains
+    detail = {"wrong_gains": [g for g, _ in bad], "gains": len(ref), **({"unmatched_gains": stray} if stray else {})}
+    aside = (f" Poles given at {'; '.join(stray)} match none of the lab's runs and were not graded." if stray else "")
     if not bad:
-        return result(name, item, "correct", 1.0, f"{fb.name(name)}: correct at every gain.", detail=detail)
+        return result(name, item, "correct", 1.0, f"{fb.name(name)}: correct at every gain.{aside}", detail=detail)
     all_ok = lambda runs: runs is not None and not _score(answer, key_runs(runs), rel, absolute)  # noqa: E731
     cands = []
     read = {d: done[d] for d in item.depends_on if d in done and done[d].status in READ_STATUSES}
@@ -112,7 +115,7 @@ def check_poles(name: str, raw: Any, env: CheckEnv, done: Mapping[str, ItemResul
             break
     share = 1.0 - len(bad) / len(ref)
     right = f" (right at the other {len(ref) - len(bad)})" if share else ""
-    text = f"{fb.name(name)}: {_wrong_text(bad, env.reveal)}{right}."
+    text = f"{fb.name(name)}: {_wrong_text(bad, env.reveal)}{right}.{aside}"
     return best(cands, result(name, item, "incorrect", share, text, detail=detail))
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import difflib
 import re
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -46,6 +47,15 @@ class StudentModel(BaseModel):
     @classmethod
     def _text(cls, v: Any) -> Any:
         return str(v) if isinstance(v, int) and not isinstance(v, bool) else ("" if v is None else v)
+
+    @field_validator("name", "sis_user_id", "login_id", "section", "id")
+    @classmethod
+    def _printable(cls, v: str) -> str:
+        """Names and ids go to the LMS and the gradebook: a control character there is a typing or export slip."""
+        bad = next((c for c in v if unicodedata.category(c) == "Cc"), None)
+        if bad is not None:
+            raise ValueError(f"contains a control character (U+{ord(bad):04X})")
+        return v
 
 
 class SubmissionModel(BaseModel):

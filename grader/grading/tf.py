@@ -154,6 +154,8 @@ def coefficient_report(answer_poly: PolyElement, ref_poly: PolyElement, *, revea
     """How the monic characteristic polynomials differ, coefficient by coefficient (highest first).
     Without ``reveal`` only which coefficients differ (no factors, terms or symbols of the model)."""
     da, dr = answer_poly.degree(_S), ref_poly.degree(_S)
+    if not answer_poly:  # sympy gives the zero polynomial degree -inf
+        return ["your characteristic polynomial is zero; the loop's is of degree " + str(dr) + " in s"]
     if da != dr:
         return [f"your characteristic polynomial is of degree {da} in s; the loop's is of degree {dr}"]
     la, lr = lc_s(answer_poly), lc_s(ref_poly)

@@ -113,14 +113,19 @@ def _answer(value: Any, unit: Any) -> Any:
     return f"{text} {unit}" if unit else (value if isinstance(value, (int, float)) else text)
 
 
-def _answers(wb: Any, limits: Limits) -> dict[str, Any]:
+def _answers(wb: Any, name: str, limits: Limits) -> dict[str, Any]:
     out: dict[str, Any] = {}
-    for row in list(_rows(wb["answers"], "answers", 300))[1:]:
+    rows: dict[str, int] = {}  # item (or design part) -> its row
+    for r, row in enumerate(list(_rows(wb["answers"], "answers", 300))[1:], start=2):
         cells = [_cell_value(c, "answers", limits) for c in row[:3]] + [None] * 3
         item, value, unit = cells[:3]
         if not isinstance(item, str) or not item.strip():
             continue
         item = item.strip()
+        if item in rows:
+            raise SubmissionError(f"{name}: sheet 'answers' row {r}: {item[:40]!r} is also on row {rows[item]}; "
+                                  "give each answer once")
+        rows[item] = r
         head, _, part = item.partition(".")
         if head in DESIGN_PARTS and part:
             out.setdefault(head, {})
@@ -200,7 +205,7 @@ def read_xlsx(path: Path, *, limits: Limits = DEFAULT_LIMITS) -> Submission:
             sid = str(info.get("submission_id") or "").strip()
             if not safe_id(sid):
                 raise SubmissionError(f"{path.name}: sheet 'info': submission_id {sid[:64]!r} must be 1-64 letters, digits, _ . - starting with a letter or digit")
-            answers = _answers(wb, limits)
+            answers = _answers(wb, path.name, limits)
             if "poles" in wb.sheetnames and answers.get("closed_loop_poles") is None:
                 answers["closed_loop_poles"] = _poles(wb, limits)
             answers, notes = canonical_answers(answers)

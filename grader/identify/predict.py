@@ -28,6 +28,10 @@ NAN = float("nan")
 NEAR_CRITICAL = 0.995
 
 
+#: A P ramp whose command moves less than this [in] over the run's second half has no ramp error to predict.
+LEAST_RAMP = 1e-6
+
+
 def _ramp_rate(run: Run) -> float:
     """Slope [in/s] of the command over the second half of the run."""
     half = run.t >= run.t[0] + 0.5 * (run.t[-1] - run.t[0])
@@ -54,7 +58,11 @@ def _ramp_estimate(p: RigParams, run: Run | None, value: float, se: float) -> Es
     method = "ramp rate / Kv of the identified model"
     if run is None:
         return not_reachable("in", method, "the dataset has no P-only ramp run to predict")
-    inputs = {"run": run.name, "Kp": run.controller.Kp, "ramp rate [in/s]": _ramp_rate(run)}
+    rate = _ramp_rate(run)
+    inputs = {"run": run.name, "Kp": run.controller.Kp, "ramp rate [in/s]": rate}
+    if abs(rate) * 0.5 * (run.t[-1] - run.t[0]) < LEAST_RAMP:
+        return not_identifiable("in", method, f"the P ramp run {run.name}'s command does not ramp over its second half "
+                                              f"(slope {rate:.3g} in/s): there is no steady ramp error to predict")
     if not np.isfinite(value):
         return not_reachable("in", method, f"the P ramp run's gain {run.controller.Kp:g} is at or above the identified "
                                            f"critical gain {zloop.critical_gain(p):.3g}: the loop has no steady ramp error", inputs)

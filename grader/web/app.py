@@ -27,6 +27,7 @@ from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from grader.errors import GraderError
+from grader.untrusted import unique_object
 from grader.web.page import render_page
 from grader.web.preview import preview
 from grader.web.ratelimit import RateLimiter
@@ -61,7 +62,7 @@ class BadJSON(Exception):
 
 async def _json_body(request: Request) -> Any:
     try:
-        return json.loads(await request.body())
+        return json.loads(await request.body(), object_pairs_hook=unique_object)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise BadJSON(f"body is not valid JSON: {getattr(exc, 'msg', exc)}") from None
     except (RecursionError, ValueError):
@@ -141,6 +142,9 @@ def _error_handlers(app: FastAPI, xlsx_cap: int) -> None:
     @app.exception_handler(RequestValidationError)
     async def _invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
         first = exc.errors()[0] if exc.errors() else {}
+        if tuple(first.get("loc", ())) == ("body", "file"):  # no upload, or a form field without a file name
+            return _error(422, "file: no submission file in the upload (a .json, .yaml, .yml or .xlsx file in field "
+                               "'file')")
         where = ".".join(str(x) for x in first.get("loc", ())) or "request"
         return _error(422, f"{where}: {first.get('msg', 'invalid request')}")
 

@@ -124,3 +124,13 @@ def test_tiny_groups_do_not_crash(tmp_path: Path) -> None:
     report = build_exam_report(read_exam_scores(_write(tmp_path / "s.csv", [HEADER, *rows])))
     assert report.problems[0].welch_p is None
     assert "too few students" in report.problems[0].verdict
+
+
+def test_scores_without_spread_are_said_to_have_none_not_too_few_students(tmp_path: Path) -> None:
+    """Every student of a group with the same score: nothing to test, and the verdict says why (not the group size)."""
+    rows = [[f"s{i}", g, "p", "3", "5", "60", "100"]
+            for i, g in enumerate(["with_lab_reference", "without_lab_reference"] * 6)]
+    report = build_exam_report(read_exam_scores(_write(tmp_path / "s.csv", [HEADER, *rows])))
+    verdict = report.problems[0].verdict
+    assert report.problems[0].welch_p is None and "too few" not in verdict
+    assert "within each group every student scored the same (60.0 % and 60.0 %, n = 6 and 6)" in verdict

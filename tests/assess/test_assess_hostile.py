@@ -84,3 +84,12 @@ def test_xlsx_tables_are_bounded(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     else:
         with pytest.raises(AssessmentError, match=rf"^{re.escape(str(tmp_path))}/t\.xlsx: {error}"):
             tables.read_table(path)
+
+
+def test_control_characters_in_free_text_are_shown_not_fatal(tmp_path: Path) -> None:
+    """XML cannot hold C0 controls (openpyxl refused the cell, and the whole workbook with it): shown as U+FFFD."""
+    mapping = load_mapping()
+    report = build_survey_report(read_survey(FIXTURES / "survey_google_forms.csv", mapping), mapping)
+    write_survey_xlsx(report.model_copy(update={"notes": ["bad\x01\x02text", "nul\x00"]}), {}, tmp_path / "report.xlsx")
+    values = [v for v, _ in _cells(tmp_path / "report.xlsx")]
+    assert "bad\ufffd\ufffdtext" in values and "nul\ufffd" in values

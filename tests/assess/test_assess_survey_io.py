@@ -144,6 +144,17 @@ def test_header_without_responses(tmp_path: Path) -> None:
     assert "has a header but no responses" in message
 
 
+@pytest.mark.parametrize("name", ["survey_template.csv", "survey_qualtrics.csv"])
+def test_a_response_pasted_twice_is_refused_naming_both_rows(tmp_path: Path, name: str) -> None:
+    """The template's respondent and Qualtrics' ResponseId identify a response: counted twice, it would weigh twice."""
+    rows = _rows(name)
+    col = next(i for i, h in enumerate(rows[0]) if h.strip().casefold() in ("respondent", "responseid"))
+    first = 3 if name == "survey_qualtrics.csv" else 1  # after Qualtrics' three header rows
+    rows.append(list(rows[first + 5]))
+    message = _error(_write(tmp_path / name, rows))
+    assert f"row {len(rows)}: respondent {rows[first + 5][col]!r} is also on row {first + 6}" in message
+
+
 def test_duplicated_column(tmp_path: Path) -> None:
     rows = [[*row, row[2]] for row in _rows("survey_template.csv")]
     assert "appears more than once" in _error(_write(tmp_path / "t.csv", rows))

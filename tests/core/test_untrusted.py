@@ -113,3 +113,21 @@ def test_the_files_instructors_write_get_a_yaml_error_not_a_traceback(text: str)
     a ValueError (Python's int-digit limit) or KeyError escaped them as a traceback."""
     with pytest.raises(yaml.YAMLError):
         load_yaml(text)
+
+
+@pytest.mark.parametrize(("text", "as_json", "message"), [
+    ('{"answers": {"Kq": "1 in^3/s/mA", "Kq": "0.04 in^3/s/mA"}}', True,
+     "s.json: key 'Kq' appears twice in one object (the second would replace the first)"),
+    ("answers:\n  Kq: 1 in^3/s/mA\n  Kq: 0.04 in^3/s/mA\n", False,
+     "s.json: not valid YAML: key 'Kq' appears twice in one mapping (line 3)"),
+])
+def test_a_key_given_twice_is_refused_not_replaced(text: str, as_json: bool, message: str) -> None:
+    """JSON parsers and PyYAML keep the last of two equal keys without a word: the first answer would vanish."""
+    with pytest.raises(GraderError) as exc:
+        parse("s.json", text, as_json=as_json)
+    assert str(exc.value) == message
+
+
+def test_equal_keys_in_different_mappings_and_a_merge_override_are_fine() -> None:
+    assert parse("m", '{"a": {"b": 1}, "c": {"b": 2}}', as_json=True) == {"a": {"b": 1}, "c": {"b": 2}}
+    assert load_yaml("x: {c: 1}\ny:\n  <<: {c: 1}\n  c: 2\n") == {"x": {"c": 1}, "y": {"c": 2}}

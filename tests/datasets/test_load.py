@@ -203,6 +203,34 @@ def test_non_monotonic_time_and_too_few_points(ds: Path) -> None:
         load(ds)
 
 
+def test_a_missing_sample_or_a_wrong_sample_time_is_refused_by_every_verb(ds: Path,
+                                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """One row per controller sample (docs/reference/dataset-format.md): checked on load, so that ``grader key``
+    never writes a key from a sample time the data do not have (the predictions depend on it)."""
+    lines = (ds / "ramp_p.csv").read_text().splitlines()
+    (ds / "ramp_p.csv").write_text("\n".join(lines[:30] + lines[40:]) + "\n")  # data rows 29-38 lost
+    with pytest.raises(DatasetError, match=r"run ramp_p \(ramp_p.csv\): .* \(row 31 is .* ms after the one before\)"):
+        load(ds)
+    (ds / "ramp_p.csv").write_text("\n".join(lines) + "\n")
+    given = json.loads((ds / "manifest.json").read_text())["given"]
+    _edit_manifest(ds, given={**given, "sample_time": "0.002 s"})  # the data are sampled every millisecond
+    assert main(["key", str(ds), "-o", str(ds.parent / "key.json")]) == 2
+    err = capsys.readouterr().err
+    assert "not evenly at the manifest's sample_time of 2 ms" in err and err.count("\n") == 1
+    assert not (ds.parent / "key.json").exists()
+
+
+def test_a_reading_too_large_for_any_rig_is_named(ds: Path) -> None:
+    """Beyond 1e12 in internal units, sums of squares over a run could overflow (the diagnosis failed on 1e300)."""
+    lines = (ds / "step_kp10.csv").read_text().splitlines()
+    cells = lines[9].split(",")
+    cells[2] = "1e300"
+    lines[9] = ",".join(cells)
+    (ds / "step_kp10.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(DatasetError, match=r"step_kp10.csv: row 10, column 'y': '1e300' is too large for a reading"):
+        load(ds)
+
+
 def test_blank_lines_inside_a_file_do_not_shift_the_rows_an_error_names(ds: Path) -> None:
     """Rows are the file's lines: two blank lines before data line 5 put a bad cell on data line 7 at line 9."""
     path = ds / "step_kp25.csv"

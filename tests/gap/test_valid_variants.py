@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from grader.cli import main
 from grader.datasets import ControllerSpec, Run, RunSpec, load
-from grader.errors import DiagnosisError
+from grader.errors import DatasetError, DiagnosisError
 from grader.gap.candidates import SATURATION, make_candidates
 from grader.gap.runs import (MAX_COMPARED, check_gains, control_law, cut_note, implied_feedback_gain, prepare_runs,
                              sample_times, start_offset_note)
@@ -148,7 +148,7 @@ def test_a_missing_row_is_named(decimals: int | None) -> None:
     T = 0.00144
     t = T * np.arange(2000)
     t = np.delete(t if decimals is None else np.round(t, decimals), 499)
-    with pytest.raises(DiagnosisError, match=r"\(row 501 is [23](\.88)? ms after the one before\)"):
+    with pytest.raises(DatasetError, match=r"\(row 501 is [23](\.88)? ms after the one before\)"):
         sample_times(_run(t), T)
 
 

@@ -11,6 +11,7 @@ import pytest
 from grader.cli import main
 
 FIXTURES = Path(__file__).resolve().parents[2] / "submissions_fixtures" / "grading"
+POLES = json.loads((FIXTURES / "correct.json").read_text())["answers"]["closed_loop_poles"]  # runs repeat Kp = 10
 
 
 def _check(tmp_path: Path, capsys: pytest.CaptureFixture[str], **answers: object) -> str:
@@ -38,6 +39,11 @@ def _check(tmp_path: Path, capsys: pytest.CaptureFixture[str], **answers: object
     ({"pd_design": "hello"}, "PD design: could not read your answer: cannot read 'hello': write Kp = …, Kd = …, overshoot = …"),
     ({"char_poly": "1/(s^2+"}, "characteristic polynomial: could not read your answer: cannot read it: '(' was never closed"),
     ({"char_poly": "s^3 + * 2"}, "write products with * or a space"),
+    ({"char_poly": "0"}, "your characteristic polynomial is zero; the loop's is of degree 3 in s"),  # not "-inf"
+    ({"closed_loop_poles": [*POLES, {"Kp": 11, "poles": ["-1", "-2", "-3"]}]},
+     "closed-loop poles: correct at every gain. Poles given at Kp = 11 match none of the lab's runs and were not graded."),
+    ({"closed_loop_poles": [*POLES, {**POLES[0], "poles": ["-1", "-2", "-3"]}]},  # a second, other set at Kp = 10
+     "closed-loop poles: wrong at Kp = 10 (right at the other 4)."),
 ])
 def test_check_feedback_is_plain(answers: dict, expected: str, tmp_path: Path,
                                  capsys: pytest.CaptureFixture[str]) -> None:
@@ -53,6 +59,8 @@ def test_check_feedback_is_plain(answers: dict, expected: str, tmp_path: Path,
      "s.json: field submission_id: 'a b!' must be 1-64 letters, digits, _ . - starting with a letter or digit"),
     ({"students": [{"name": "x"}], "answer": {}}, "s.json: field submission_id is required but missing "
                                                   "(and 1 more field with problems)"),
+    ({"submission_id": "a", "students": [{"name": "Ada\u0001L"}]},  # would have failed the whole gradebook
+     "s.json: field students.0.name: contains a control character (U+0001)"),
 ])
 def test_file_errors_are_plain(doc: dict, expected: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "s.json").write_text(json.dumps(doc))

@@ -11,7 +11,7 @@ import pytest
 from grader.cli import main
 from grader.grading.context import KeyStore
 from grader.grading.grade import GradeOptions
-from grader.grading.pipeline import expand_inputs, grade_batch, read_all
+from grader.grading.pipeline import expand_inputs, grade_batch, passed_over, read_all
 
 from .conftest import FIXTURES, key_args
 
@@ -29,6 +29,15 @@ def test_expand_inputs_files_folders_globs(tmp_path: Path) -> None:
     (folder / "notes.txt").write_text("x")
     assert [p.name for p in expand_inputs([str(folder)])] == ["correct.json", "correct.yaml", "garbage.json"]
     assert [p.name for p in expand_inputs([str(folder / "*.yaml"), str(folder / "correct.json")])] == ["correct.json", "correct.yaml"]
+
+
+def test_files_a_folder_holds_that_are_not_submissions_are_named(tmp_path: Path) -> None:
+    folder = _copy(tmp_path, ["correct.json"])
+    for name in ("group7.xls", "group8.ods", ".DS_Store"):
+        (folder / name).write_text("x")
+    (folder / "data").mkdir()  # a group's dataset folder: expected beside the submissions
+    assert [p.name for p in passed_over([str(folder)])] == ["group7.xls", "group8.ods"]
+    assert passed_over([str(folder / "*.json")]) == []
 
 
 def test_duplicate_ids_are_both_kept(tmp_path: Path, opts: GradeOptions, store: KeyStore) -> None:

@@ -127,3 +127,16 @@ def test_xlsx_zip_bomb_and_non_zip(tmp_path: Path) -> None:
     (tmp_path / "fake.xlsx").write_text("not a zip")
     with pytest.raises(SubmissionError, match="not an XLSX"):
         read_submission(tmp_path / "fake.xlsx")
+
+
+def test_xlsx_answer_on_two_rows_is_refused_naming_both(tmp_path: Path) -> None:
+    """The second row would silently replace the first (as a JSON key given twice would)."""
+    wb = build_template(["Kq", "Kpot"], station="default", gain_unit="dimensionless")
+    wb["students"].append(["Ada"])
+    wb["answers"].append(["Kq", 0.04, "in^3/s/mA"])
+    path = tmp_path / "g.xlsx"
+    wb.save(path)
+    first = next(r[0].row for r in wb["answers"].iter_rows(min_row=2) if r[0].value == "Kq")
+    with pytest.raises(SubmissionError, match=rf"^g.xlsx: sheet 'answers' row {wb['answers'].max_row}: 'Kq' is also on "
+                                              rf"row {first}; give each answer once$"):
+        read_submission(path)

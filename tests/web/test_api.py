@@ -126,6 +126,12 @@ def test_routing_errors_are_one_line_json_errors(client: TestClient, method: str
         assert r.headers["Allow"] == "POST"
 
 
+def test_an_answer_given_twice_is_refused(client: TestClient) -> None:
+    body = b'{"answers": {"Kq": "1 in^3/s/mA", "Kq": "0.0385 in^3/s/mA"}}'
+    r = client.post("/api/check", content=body, headers={"Content-Type": "application/json"})
+    assert r.status_code == 422 and "'Kq' appears twice" in r.json()["error"]
+
+
 def test_head_of_the_page(client: TestClient) -> None:
     r = client.head("/")
     assert r.status_code == 200 and r.headers["content-type"].startswith("text/html") and not r.content
@@ -138,7 +144,8 @@ def test_upload_type_and_broken_files(client: TestClient) -> None:
     assert r.status_code == 422 and "\n" not in r.json()["error"]
     r = client.post("/api/check-file", files={"file": ("group 7.yaml", b"a: &x [1]\nb: *x\n")})
     assert r.status_code == 422 and r.json()["error"].startswith("group_7.yaml: YAML aliases")
-    assert client.post("/api/check-file").status_code == 422
+    for r in (client.post("/api/check-file"), client.post("/api/check-file", files={"file": ("", b"{}")})):
+        assert r.status_code == 422 and r.json()["error"].startswith("file: no submission file in the upload")
 
 
 def test_uploads_stay_in_a_temporary_folder(client: TestClient, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

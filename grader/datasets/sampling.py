@@ -1,0 +1,54 @@
+"""One row per controller sample: a run's time stamps read onto the sample grid every ``sample_time``.
+
+The dataset format (docs/reference/dataset-format.md) asks for one row per sample. Stamps rounded for printing
+are read back onto the grid; a missing or repeated sample is an error naming the row after it. :func:`load
+<grader.datasets.load.load>` checks every run this way, so keys, grading and the diagnosis see the same data.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from grader.errors import DatasetError
+
+if TYPE_CHECKING:
+    from grader.datasets.load import Run
+
+Array = NDArray[np.float64]
+
+
+def _printed_resolution(t: Array) -> float:
+    """The resolution [s] the time stamps were printed with: the median over rows of the largest power of ten from
+    1 s down to 1 ns of which a stamp is a multiple (a logger writing ``%.3f`` rounds a 1.44 ms grid to whole
+    milliseconds; a stamp that happens to end in zeros, as 1.000, shows a coarser one than the file's)."""
+    res = np.zeros(t.size)
+    for d in range(9, -1, -1):
+        q = 10.0**-d
+        res[np.abs(t / q - np.round(t / q)) < 1e-6] = q
+    return float(np.median(res))
+
+
+def sample_times(run: Run, T: float) -> Array:
+    """The run's time stamps [s] as controller samples every ``T``: as recorded where each row lies within 5 % of
+    T of its sample; else the grid t₀ + k·T (t₀ centred in the offsets every row allows), where one grid takes
+    every row within half the stamps' printed resolution plus 5 % of T (never half a sample). Raises
+    :class:`DatasetError` otherwise, naming the first row no grid takes with the rows before it (a missing or
+    repeated sample)."""
+    t, dt = run.t, np.diff(run.t)
+    if abs(float(np.median(dt)) - T) <= 0.01 * T and np.max(np.abs(dt - T)) <= 0.05 * T:
+        return t
+    k = np.arange(t.size)
+    off, tol = t - k * T, min(0.05 * T + 0.5 * _printed_resolution(t), 0.499 * T)
+    lo, hi = np.maximum.accumulate(off - tol), np.minimum.accumulate(off + tol)  # the offsets rows 0..k allow
+    broken = np.flatnonzero(lo > hi)
+    if broken.size == 0:
+        return 0.5 * (lo[-1] + hi[-1]) + k * T
+    i = int(broken[0])
+    raise DatasetError(
+        f"run {run.name} ({run.spec.file}): rows are {(t[-1] - t[0]) / (t.size - 1) * 1e3:.4g} ms apart on average, "
+        f"not evenly at the manifest's sample_time of {T * 1e3:g} ms (row {run.line(i)} is {dt[i - 1] * 1e3:.4g} ms "
+        "after the one before); the data need one row per controller sample"
+    )
