@@ -113,12 +113,22 @@ def _answer(value: Any, unit: Any) -> Any:
     return f"{text} {unit}" if unit else (value if isinstance(value, (int, float)) else text)
 
 
+def _columns(header: list[Any]) -> tuple[int, int, int]:
+    """Columns of item, value and unit, found by the header row's names (a column inserted before them moves
+    them); the template's A, B, C where the header does not name them."""
+    names = [str(c.value).strip().casefold() if c is not None and isinstance(c.value, str) else "" for c in header]
+    if "item" not in names or "value" not in names:
+        return 0, 1, 2
+    return names.index("item"), names.index("value"), names.index("unit") if "unit" in names else -1
+
+
 def _answers(wb: Any, name: str, limits: Limits) -> dict[str, Any]:
     out: dict[str, Any] = {}
     rows: dict[str, int] = {}  # item (or design part) -> its row
-    for r, row in enumerate(list(_rows(wb["answers"], "answers", 300))[1:], start=2):
-        cells = [_cell_value(c, "answers", limits) for c in row[:3]] + [None] * 3
-        item, value, unit = cells[:3]
+    table = list(_rows(wb["answers"], "answers", 300))
+    cols = _columns(table[0] if table else [])
+    for r, row in enumerate(table[1:], start=2):
+        item, value, unit = (_cell_value(row[j], "answers", limits) if 0 <= j < len(row) else None for j in cols)
         if not isinstance(item, str) or not item.strip():
             continue
         item = item.strip()

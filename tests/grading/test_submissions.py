@@ -140,3 +140,16 @@ def test_xlsx_answer_on_two_rows_is_refused_naming_both(tmp_path: Path) -> None:
     with pytest.raises(SubmissionError, match=rf"^g.xlsx: sheet 'answers' row {wb['answers'].max_row}: 'Kq' is also on "
                                               rf"row {first}; give each answer once$"):
         read_submission(path)
+
+
+def test_xlsx_answers_are_found_by_the_header_where_a_column_was_inserted_before_them(tmp_path: Path) -> None:
+    """Read by position, every answer was 'missing' and nothing said why."""
+    wb = build_template(["Kq", "Kpot"], station="default", gain_unit="dimensionless")
+    wb["students"].append(["Ada"])
+    for r in wb["answers"].iter_rows(min_row=2):
+        if r[0].value == "Kq":
+            r[1].value, r[2].value = 0.0385, "in^3/s/mA"
+    wb["answers"].insert_cols(1)
+    path = tmp_path / "g.xlsx"
+    wb.save(path)
+    assert read_submission(path).answers["Kq"] == "0.0385 in^3/s/mA"
