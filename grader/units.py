@@ -63,16 +63,30 @@ def _check_powers(text: str, where: str) -> None:
             raise UnitError(f"{where}: {text!r}: only a unit raised to a small whole power (up to {_MAX_EXPONENT}) is allowed")
 
 
+_SUPERSCRIPTS = str.maketrans("⁰¹²³⁴⁵⁶⁷⁸⁹⁻", "0123456789-")
+_SUPER_RUN = re.compile("[⁻⁰¹²³⁴⁵⁶⁷⁸⁹]+")
+#: Products and minus as the reports print them (lbf·s/in) or word processors type them.
+_SIGNS = str.maketrans({"·": "*", "⋅": "*", "×": "*", "−": "-"})
+
+
+def plain_powers(text: str) -> str:
+    """Superscript powers as ``^`` powers (``in³`` -> ``in^3``, ``s⁻¹`` -> ``s^-1``): what the reports print
+    reads back."""
+    return _SUPER_RUN.sub(lambda m: "^" + m.group().translate(_SUPERSCRIPTS), text)
+
+
 def _guard(text: str, where: str) -> str:
     if not isinstance(text, str):
         raise UnitError(f"{where}: expected a quantity string, got {type(text).__name__}")
-    text = text.strip()
+    text = plain_powers(text.strip()).translate(_SIGNS)
     if not text:
         raise UnitError(f"{where}: empty quantity")
     if len(text) > _MAX_LEN:
         raise UnitError(f"{where}: quantity string longer than {_MAX_LEN} characters")
     if not _ALLOWED.match(text):
-        raise UnitError(f"{where}: {text!r} contains characters not allowed in a quantity")
+        bad = next(c for c in text if not _ALLOWED.match(c))
+        hint = " (a decimal comma? write 0.04)" if bad == "," else ""
+        raise UnitError(f"{where}: {text!r} contains {bad!r}, which a quantity cannot hold{hint}")
     if _BIG_NUMBER.search(text):
         raise UnitError(f"{where}: {text!r} has a number too large")
     _check_powers(text, where)

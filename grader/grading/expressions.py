@@ -31,6 +31,7 @@ from sympy.polys.rings import PolyElement, ring
 from grader.errors import ExpressionError
 from grader.grading.limits import DEFAULT_LIMITS, Limits
 from grader.model.symbolic import COURSE_SYMBOLS
+from grader.units import plain_powers
 
 #: the polynomial ring over QQ in the course's symbols, ``s`` first
 RING, *_GENS = ring(",".join(COURSE_SYMBOLS), sp.QQ)
@@ -253,7 +254,7 @@ def parse_expression(text: Any, *, limits: Limits = DEFAULT_LIMITS) -> Expressio
         raise ExpressionError(f"expected the expression as text, got {type(text).__name__}")
     if len(text) > limits.max_string:
         raise ExpressionError(f"expression longer than {limits.max_string} characters")
-    body = _strip_equation(text.translate(_TRANSLATE).strip())
+    body = _strip_equation(plain_powers(text).translate(_TRANSLATE).strip())
     if not body:
         raise ExpressionError("empty expression")
     body = implicit_products(body)

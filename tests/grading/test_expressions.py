@@ -65,11 +65,16 @@ def test_no_eval_sympify_or_parse_expr_in_the_grading_package() -> None:
 
 @pytest.mark.parametrize("text", [
     "Kp*Kamp*Kq/(M*s^3)", "X(s)/R(s) = Kp/(s+1)", "s^3 + 2*s + 1 = 0", "K_p*K_amp/(β*V_t)", "−s × 2 ÷ Kp",
+    "s³ + 2s² + A²s⁻¹",
 ])
 def test_accepted_forms(text: str) -> None:
     e = parse_expression(text)
     assert e.symbols <= set(COURSE_SYMBOLS)
     assert to_ratfunc(e) == sympy_to_ratfunc(to_sympy(e))
+
+
+def test_superscript_powers_read_as_powers() -> None:
+    assert to_ratfunc(parse_expression("s³ + A² s⁻¹")) == to_ratfunc(parse_expression("s^3 + A^2*s^-1"))
 
 
 def test_time_limit_interrupts() -> None:

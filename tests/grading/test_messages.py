@@ -40,6 +40,8 @@ def _check(tmp_path: Path, capsys: pytest.CaptureFixture[str], **answers: object
     ({"char_poly": "1/(s^2+"}, "characteristic polynomial: could not read your answer: cannot read it: '(' was never closed"),
     ({"char_poly": "s^3 + * 2"}, "write products with * or a space"),
     ({"char_poly": "0"}, "your characteristic polynomial is zero; the loop's is of degree 3 in s"),  # not "-inf"
+    ({"Kq": "0.03851 in³/s/mA"}, "Kq = 0.03851 in³/s/mA: correct."),  # as the reports print it
+    ({"Kce": "0,0007475 in^3/s/psi"}, "contains ',', which a quantity cannot hold (a decimal comma? write 0.04)"),
     ({"closed_loop_poles": [*POLES, {"Kp": 11, "poles": ["-1", "-2", "-3"]}]},
      "closed-loop poles: correct at every gain. Poles given at Kp = 11 match none of the lab's runs and were not graded."),
     ({"closed_loop_poles": [*POLES, {**POLES[0], "poles": ["-1", "-2", "-3"]}]},  # a second, other set at Kp = 10
