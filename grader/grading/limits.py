@@ -21,7 +21,7 @@ class Limits:
     max_string: int = 2_000  # any one string in a submission
     max_nodes: int = 400  # AST nodes in an expression
     max_exponent: int = 12  # |n| in x**n
-    max_terms: int = 20_000  # bound on polynomial terms an expression can expand to
+    max_terms: int = 1_000  # bound on polynomial terms an expression can expand to (numerator or denominator)
     max_number: float = 1e15  # magnitude of a numeric literal in an expression
     expr_seconds: float = 2.0  # wall-clock limit for checking one expression
     max_poles: int = 12  # poles per gain
