@@ -10,6 +10,7 @@ optional data sheets ``calibration``, ``flow``, ``friction`` (headers ``name [un
 from __future__ import annotations
 
 import datetime as dt
+import difflib
 import xml.etree.ElementTree as ET
 import zipfile
 from collections.abc import Iterator
@@ -81,12 +82,25 @@ def _plain(v: Any, where: str) -> Any:
     return v
 
 
+#: The info sheet's fields (its header row says ``field``); the station's data come from the data sheets.
+INFO_FIELDS = ("submission_id", "station")
+
+
 def _info(wb: Any, name: str, limits: Limits) -> dict[str, Any]:
+    """The info sheet's fields; an unknown one (a misspelt ``station`` would grade against the default station) is
+    refused, as a JSON submission's unknown field is."""
     out = {}
-    for row in _rows(wb["info"], "info", 50):
+    for r, row in enumerate(_rows(wb["info"], "info", 50), start=1):
         cells = [_plain(_cell_value(c, "info", limits), f"{name}: sheet 'info'") for c in row[:2]]
         if len(cells) == 2 and isinstance(cells[0], str) and cells[0].strip():
-            out[cells[0].strip()] = cells[1]
+            key = cells[0].strip()
+            if key not in INFO_FIELDS and not (r == 1 and key.casefold() == "field"):
+                near = difflib.get_close_matches(key, INFO_FIELDS, n=1)
+                why = ("; a workbook carries its group's data in the data sheets (calibration, flow, friction, runs)"
+                       if key == "data" else f"; did you mean {near[0]!r}?" if near else
+                       f" (the fields are {', '.join(INFO_FIELDS)})")
+                raise SubmissionError(f"{name}: sheet 'info' row {r}: unknown field {key[:40]!r}{why}")
+            out[key] = cells[1]
     return out
 
 

@@ -153,3 +153,15 @@ def test_xlsx_answers_are_found_by_the_header_where_a_column_was_inserted_before
     path = tmp_path / "g.xlsx"
     wb.save(path)
     assert read_submission(path).answers["Kq"] == "0.0385 in^3/s/mA"
+
+
+def test_xlsx_info_field_misspelt_is_refused_not_ignored(tmp_path: Path) -> None:
+    """Ignored, a misspelt station graded the group against the default station's key."""
+    wb = build_template(["Kq"], station="default", gain_unit="dimensionless")
+    wb["students"].append(["Ada"])
+    wb["info"].append(["staton", "rig2"])
+    path = tmp_path / "g.xlsx"
+    wb.save(path)
+    with pytest.raises(SubmissionError, match=r"^g.xlsx: sheet 'info' row 4: unknown field 'staton'; did you mean "
+                                              r"'station'\?$"):
+        read_submission(path)
