@@ -57,7 +57,10 @@ def _check_powers(text: str, where: str) -> None:
     """Allow only ``unit ** small integer``: no power of a number, no tower, |n| <= 12
     (pint evaluates powers exactly, so ``9**9**9`` would hang)."""
     for m in _POWER.finditer(text.replace("^", "**")):
-        base, exponent, tower = m.group(1), m.group(2).strip("() \t"), m.group(3)
+        raw = m.group(2).strip()
+        base, exponent, tower = m.group(1), raw.strip("() \t"), m.group(3)
+        if raw.startswith("(") != raw.endswith(")"):  # (1/3): the match stopped at the '/'
+            exponent = ""
         if tower or base.isdigit() or base == "." or not re.fullmatch(r"[-+]?\d{1,2}", exponent) \
                 or abs(int(exponent)) > _MAX_EXPONENT:
             raise UnitError(f"{where}: {text!r}: only a unit raised to a small whole power (up to {_MAX_EXPONENT}) is allowed")

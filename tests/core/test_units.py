@@ -33,6 +33,7 @@ def test_parse_and_convert(text: str | int, unit: str, expected: float) -> None:
         ("x" * 500, "longer than"),
         ("__import__('os')", "contains \"'\", which a quantity cannot hold"),
         ("2 m**99999999", "small whole power"),
+        ("1 mA**(1/3)", "small whole power"),  # a fraction in brackets: read as mA**0.333 before
         ("1" * 60 + " m", "too large"),
         ("3 blargs", "cannot read .3 blargs. as a number with a unit$"),
         ("0.0385 in3/s/mA", "did you mean in\\^3/s/mA\\?$"),
