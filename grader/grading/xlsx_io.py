@@ -124,7 +124,20 @@ def _answer(value: Any, unit: Any) -> Any:
         return unit
     unit = str(unit).strip() if unit is not None else ""
     text = repr(value) if isinstance(value, float) else str(value)
+    if unit and isinstance(value, str) and any(c.isdigit() for c in text) and not _bare_number(text):
+        if text.replace(" ", "").endswith(unit.replace(" ", "")):  # the same unit in both: given once
+            return text
+        return InvalidAnswer(f"the value {text[:40]!r} carries its own unit and the unit column says {unit[:40]!r}; "
+                             "give the unit once")
     return f"{text} {unit}" if unit else (value if isinstance(value, (int, float)) else text)
+
+
+def _bare_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _columns(header: list[Any]) -> tuple[int, int, int]:

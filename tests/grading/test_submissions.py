@@ -165,3 +165,22 @@ def test_xlsx_info_field_misspelt_is_refused_not_ignored(tmp_path: Path) -> None
     with pytest.raises(SubmissionError, match=r"^g.xlsx: sheet 'info' row 4: unknown field 'staton'; did you mean "
                                               r"'station'\?$"):
         read_submission(path)
+
+
+@pytest.mark.parametrize(("value", "unit", "read"), [
+    ("0.0385 in^3/s/mA", "ft^3/s/mA", "invalid"),  # glued together, it read 'in³/s/mAft³/s/mA', of a wrong dimension
+    ("0.0385 in^3/s/mA", "in^3/s/mA", "0.0385 in^3/s/mA"),  # the same unit twice: given once
+    (0.0385, "in^3/s/mA", "0.0385 in^3/s/mA"),
+])
+def test_xlsx_value_with_its_own_unit_and_a_unit_column(tmp_path: Path, value: object, unit: str, read: str) -> None:
+    wb = build_template(["Kq"], station="default", gain_unit="dimensionless")
+    wb["students"].append(["Ada"])
+    for r in wb["answers"].iter_rows(min_row=2):
+        if r[0].value == "Kq":
+            r[1].value, r[2].value = value, unit
+    wb.save(tmp_path / "g.xlsx")
+    got = read_submission(tmp_path / "g.xlsx").answers["Kq"]
+    if read == "invalid":
+        assert isinstance(got, InvalidAnswer) and "carries its own unit and the unit column says 'ft^3/s/mA'" in got.reason
+    else:
+        assert got == read
