@@ -41,7 +41,13 @@ def _key(header: str) -> str:
 
 
 def _columns(table: Table) -> dict[str, int]:
-    found = {_key(h): i for i, h in enumerate(table.rows[0]) if h.strip()}
+    found: dict[str, int] = {}
+    for i, h in enumerate(table.rows[0]):
+        if h.strip() and _key(h) in found and _key(h) in REQUIRED:
+            raise AssessmentError(f'{table.name}: column "{h.strip()}" appears more than once (columns '
+                                  f"{column_letter(found[_key(h)])} and {column_letter(i)})")
+        if h.strip():
+            found.setdefault(_key(h), i)
     missing = [c for c in REQUIRED if c not in found]
     if missing:
         raise AssessmentError(

@@ -134,3 +134,10 @@ def test_scores_without_spread_are_said_to_have_none_not_too_few_students(tmp_pa
     verdict = report.problems[0].verdict
     assert report.problems[0].welch_p is None and "too few" not in verdict
     assert "within each group every student scored the same (60.0 % and 60.0 %, n = 6 and 6)" in verdict
+
+
+def test_a_required_column_given_twice_is_refused_naming_both(tmp_path: Path) -> None:
+    """The last copy won silently, and the error then blamed the groups."""
+    rows = [[*HEADER, "group"], *([f"s{i}", g, "p", "3", "5", "60", "100", "with_lab_reference"]
+                                  for i, g in enumerate(["with_lab_reference", "without_lab_reference"] * 3))]
+    assert 'column "group" appears more than once (columns B and H)' in _error(_write(tmp_path / "s.csv", rows))
