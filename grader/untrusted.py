@@ -132,12 +132,20 @@ def parse(name: str, text: str, *, as_json: bool, max_yaml_events: int = MAX_YAM
     except DuplicateKey as exc:
         raise GraderError(f"{name}: {exc}") from None
     except yaml.YAMLError as exc:
-        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise GraderError(f"{name}: not valid YAML: {first}") from None
+        raise GraderError(f"{name}: not valid YAML: {_yaml_fault(exc)}") from None
     except RecursionError:
         raise GraderError(f"{name}: {kind} nested too deeply") from None
     except ValueError:  # JSON: an integer beyond Python's int-digit limit (YAML says so as a YAMLError)
         raise GraderError(f"{name}: not valid {kind}: {_TOO_LONG}") from None
+
+
+def _yaml_fault(exc: yaml.YAMLError) -> str:
+    """PyYAML's problem and the line it is on ("found unhashable key (line 1)"), rather than only its context
+    ("while constructing a mapping")."""
+    problem, mark = getattr(exc, "problem", None), getattr(exc, "problem_mark", None)
+    if problem:
+        return f"{problem}" + (f" (line {mark.line + 1})" if mark is not None and "(line " not in problem else "")
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
 def _json_fault(exc: json.JSONDecodeError) -> str:

@@ -131,3 +131,14 @@ def test_a_key_given_twice_is_refused_not_replaced(text: str, as_json: bool, mes
 def test_equal_keys_in_different_mappings_and_a_merge_override_are_fine() -> None:
     assert parse("m", '{"a": {"b": 1}, "c": {"b": 2}}', as_json=True) == {"a": {"b": 1}, "c": {"b": 2}}
     assert load_yaml("x: {c: 1}\ny:\n  <<: {c: 1}\n  c: 2\n") == {"x": {"c": 1}, "y": {"c": 2}}
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("? [a, b]\n: 1\n", "m.yaml: not valid YAML: found unhashable key (line 1)"),
+    ("a: [1, 2\n", "m.yaml: not valid YAML: expected ',' or ']', but got '<stream end>' (line 2)"),
+])
+def test_yaml_faults_name_the_problem_and_its_line(text: str, message: str) -> None:
+    """Not only PyYAML's context ("while constructing a mapping", "while parsing a flow sequence")."""
+    with pytest.raises(GraderError) as exc:
+        parse("m.yaml", text, as_json=False)
+    assert str(exc.value) == message
