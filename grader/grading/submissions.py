@@ -134,7 +134,9 @@ def resolve_data_dir(path: Path, data: str) -> Path:
         raise SubmissionError(f"{path.name}: field data: {data!r} must be a folder next to the submission "
                               "(no '..', not absolute)")
     target = (base / data).resolve()
-    if not target.is_relative_to(base) or not target.is_dir():
+    if not target.is_relative_to(base):
+        raise SubmissionError(f"{path.name}: field data: {data!r} is a link that leads out of the submission's folder")
+    if not target.is_dir():
         raise SubmissionError(f"{path.name}: field data: folder {data!r} not found next to the submission")
     return target
 
@@ -179,7 +181,8 @@ def read_submission(path: str | Path, *, limits: Limits = DEFAULT_LIMITS) -> Sub
     """Read a JSON, YAML or XLSX submission; raises SubmissionError naming the file and field."""
     path = Path(path)
     if not path.is_file():
-        raise SubmissionError(f"{path}: " + ("is a folder; give one submission file" if path.is_dir() else "file not found"))
+        raise SubmissionError(f"{path}: " + ("is a folder; give one submission file" if path.is_dir() else
+                                             "not a regular file" if path.exists() else "file not found"))
     if path.suffix.lower() not in SUFFIXES:
         raise SubmissionError(f"{path.name}: unknown submission type (use {', '.join(SUFFIXES)})")
     if path.suffix.lower() == ".xlsx":

@@ -57,8 +57,10 @@ def test_group_data_folder_must_be_next_to_the_submission(tmp_path: Path) -> Non
     outside = tmp_path.parent / "elsewhere"
     outside.mkdir(exist_ok=True)
     (tmp_path / "link").symlink_to(outside)
-    with pytest.raises(SubmissionError, match="not found next to the submission"):
+    with pytest.raises(SubmissionError, match="field data: 'link' is a link that leads out of the submission's folder"):
         read_submission(_write(tmp_path, "t.json", {"submission_id": "t", "students": STUDENTS, "data": "link"}))
+    with pytest.raises(SubmissionError, match="field data: folder 'absent' not found next to the submission"):
+        read_submission(_write(tmp_path, "u.json", {"submission_id": "u", "students": STUDENTS, "data": "absent"}))
     with pytest.raises(SubmissionError, match="no '..'"):
         read_submission(_write(tmp_path, "u.json", {"submission_id": "u", "students": STUDENTS, "data": "/etc"}))
 
