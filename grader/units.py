@@ -59,7 +59,7 @@ def _check_powers(text: str, where: str) -> None:
     for m in _POWER.finditer(text.replace("^", "**")):
         raw = m.group(2).strip()
         base, exponent, tower = m.group(1), raw.strip("() \t"), m.group(3)
-        if raw.startswith("(") != raw.endswith(")"):  # (1/3): the match stopped at the '/'
+        if raw.startswith("(") and not raw.endswith(")"):  # (1/3): the match stopped at the '/'
             exponent = ""
         if tower or base.isdigit() or base == "." or not re.fullmatch(r"[-+]?\d{1,2}", exponent) \
                 or abs(int(exponent)) > _MAX_EXPONENT:
@@ -68,8 +68,11 @@ def _check_powers(text: str, where: str) -> None:
 
 _SUPERSCRIPTS = str.maketrans("⁰¹²³⁴⁵⁶⁷⁸⁹⁻", "0123456789-")
 _SUPER_RUN = re.compile("[⁻⁰¹²³⁴⁵⁶⁷⁸⁹]+")
-#: Products and minus as the reports print them (lbf·s/in) or word processors type them.
-_SIGNS = str.maketrans({"·": "*", "⋅": "*", "×": "*", "−": "-"})
+#: Operators as the reports print them (lbf·s/in) or word processors type them; expressions read them too.
+SIGNS = {"−": "-", "×": "*", "·": "*", "⋅": "*", "÷": "/"}
+_SIGNS = str.maketrans(SIGNS)
+#: A power of ten written out (2.23×10⁻⁵, as the preview prints small numbers): read as 2.23e-5.
+_TIMES_TEN = re.compile(r"(\d)\s*\*\s*10\^([-+]?\d+)")
 
 
 def plain_powers(text: str) -> str:
@@ -81,7 +84,7 @@ def plain_powers(text: str) -> str:
 def _guard(text: str, where: str) -> str:
     if not isinstance(text, str):
         raise UnitError(f"{where}: expected a quantity string, got {type(text).__name__}")
-    text = plain_powers(text.strip()).translate(_SIGNS)
+    text = _TIMES_TEN.sub(r"\1e\2", plain_powers(text.strip()).translate(_SIGNS))
     if not text:
         raise UnitError(f"{where}: empty quantity")
     if len(text) > _MAX_LEN:

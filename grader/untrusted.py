@@ -64,20 +64,6 @@ class CoreLoader(yaml.SafeLoader):
                     else f"{text[:40]!r} is not {_WHAT.get(tag, 'a ' + tag)}")
             raise yaml.constructor.ConstructorError(None, None, what, node.start_mark) from None
 
-    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
-        """A mapping, refusing a key written twice in it (a merge ``<<`` may still be overridden, as YAML allows)."""
-        seen: set[Any] = set()
-        for key_node, _ in node.value:
-            if not isinstance(key_node, yaml.ScalarNode) or key_node.tag == _MERGE:
-                continue
-            key = self.construct_object(key_node)
-            if key in seen:
-                raise yaml.constructor.ConstructorError(
-                    None, None, f"key {str(key)[:40]!r} appears twice in one mapping (line {key_node.start_mark.line + 1})",
-                    key_node.start_mark)
-            seen.add(key)
-        return super().construct_mapping(node, deep=deep)
-
     def construct_yaml_int(self, node: yaml.ScalarNode) -> int:
         text = self.construct_scalar(node)
         if not _INT_RE.fullmatch(text):
@@ -104,11 +90,42 @@ CoreLoader.add_constructor(_INT, CoreLoader.construct_yaml_int)
 CoreLoader.add_constructor(_FLOAT, CoreLoader.construct_yaml_float)
 
 
+def _unique_keys(root: yaml.Node) -> None:
+    """Refuse a key written twice in one mapping of the composed document, before anything is constructed (PyYAML
+    flattens merged mappings in place while constructing, so a check then would see a merge's override as a second
+    key). A merge ``<<`` may be overridden, as YAML allows; keys are compared as written, with their tags."""
+    todo, seen = [root], set()
+    while todo:
+        node = todo.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.MappingNode):
+            keys: set[tuple[str, str]] = set()
+            for key, value in node.value:
+                if isinstance(key, yaml.ScalarNode) and key.tag != _MERGE:
+                    if (key.tag, key.value) in keys:
+                        raise yaml.constructor.ConstructorError(
+                            None, None, f"key {key.value[:40]!r} appears twice in one mapping", key.start_mark)
+                    keys.add((key.tag, key.value))
+                todo += [key, value]
+        elif isinstance(node, yaml.SequenceNode):
+            todo += node.value
+
+
 def load_yaml(text: str) -> Any:
     """``text``'s YAML value read as :class:`CoreLoader` reads it, without :func:`parse`'s bounds: for the files
     instructors and lab staff write for themselves (rubrics, stations, survey mappings), so that a scale labelled
-    ``No … Yes`` is text there too."""
-    return yaml.load(text, Loader=CoreLoader)  # a SafeLoader: no Python objects
+    ``No … Yes`` is text there too. A key written twice in one mapping is refused (:func:`_unique_keys`)."""
+    loader = CoreLoader(text)  # a SafeLoader: no Python objects
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        _unique_keys(node)
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
 
 
 def parse(name: str, text: str, *, as_json: bool, max_yaml_events: int = MAX_YAML_EVENTS) -> Any:

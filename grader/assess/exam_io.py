@@ -43,11 +43,13 @@ def _key(header: str) -> str:
 def _columns(table: Table) -> dict[str, int]:
     found: dict[str, int] = {}
     for i, h in enumerate(table.rows[0]):
-        if h.strip() and _key(h) in found and _key(h) in REQUIRED:
+        if not h.strip():
+            continue
+        key = _key(h)
+        if key in found and key in REQUIRED:
             raise AssessmentError(f'{table.name}: column "{h.strip()}" appears more than once (columns '
-                                  f"{column_letter(found[_key(h)])} and {column_letter(i)})")
-        if h.strip():
-            found.setdefault(_key(h), i)
+                                  f"{column_letter(found[key])} and {column_letter(i)})")
+        found.setdefault(key, i)
     missing = [c for c in REQUIRED if c not in found]
     if missing:
         raise AssessmentError(

@@ -8,10 +8,11 @@ noise the rig's controller saw: the reading minus its local quintic smoothing
 0.01 mil, so a ringing step injects no signal, and still catches 72 % of white noise's variance). Models are simulated with their
 controller reading it too, so that effects the noise dithers (backlash, deadband,
 stiction) act as they did on the rig. It is zero for the instability run, whose
-large oscillation no smoother separates from the noise to the needed precision. Checks raise :class:`DiagnosisError`
-naming the run: fewer than two runs to compare, rows that are not one per controller sample (time stamps rounded
-for printing are read back onto the grid: :func:`sample_times`), and a manifest gain the recorded controller
-output ``u`` contradicts. A run too short, or whose position never changes, is set aside with a note; a reading
+large oscillation no smoother separates from the noise to the needed precision. The runs are put on the sample grid
+(time stamps rounded for printing are read back onto it: :func:`~grader.datasets.sampling.sample_times`, whose
+check that each row is one controller sample the dataset's load has made). Checks raise :class:`DiagnosisError`
+naming the run: fewer than two runs to compare, and a manifest gain the recorded controller output ``u``
+contradicts. A run too short, or whose position never changes, is set aside with a note; a reading
 that jumps out and back within one sample is mended with one (:mod:`grader.gap.glitches`). A run is
 compared over at most :data:`MAX_COMPARED` seconds after its command.
 """

@@ -31,7 +31,7 @@ from sympy.polys.rings import PolyElement, ring
 from grader.errors import ExpressionError
 from grader.grading.limits import DEFAULT_LIMITS, Limits
 from grader.model.symbolic import COURSE_SYMBOLS
-from grader.units import plain_powers
+from grader.units import SIGNS, plain_powers
 
 #: the polynomial ring over QQ in the course's symbols, ``s`` first
 RING, *_GENS = ring(",".join(COURSE_SYMBOLS), sp.QQ)
@@ -45,7 +45,7 @@ _OPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**"}
 _LHS = re.compile(r"^[A-Za-z_(){}\s/]*$")
 _TOKEN = re.compile(r"(?P<num>(?:\d[\d_]*(?:\.[\d_]*)?|\.\d[\d_]*)(?:[eE][+-]?\d+)?)|(?P<name>[^\W\d]\w*)"
                     r"|(?P<space>\s+)|(?P<other>.)", re.S)
-_TRANSLATE = str.maketrans({"^": "**", "−": "-", "×": "*", "·": "*", "÷": "/", "⋅": "*"})
+_TRANSLATE = str.maketrans({"^": "**", **SIGNS})
 
 
 class RatFunc:

@@ -91,9 +91,11 @@ def check_poles(name: str, raw: Any, env: CheckEnv, done: Mapping[str, ItemResul
     absolute = float(item.tolerance.absolute or 0.0) if not isinstance(item.tolerance.absolute, str) else \
         quantity_to_float(item.tolerance.absolute, "1/s", where="tolerance.absolute")
     bad = _score(answer, ref, rel, absolute)
-    stray = [_gain_text(g) for g, _ in answer if not any(g.matches(h) for h, _ in ref)]  # the student's own gains
+    stray = list(dict.fromkeys(_gain_text(g) for g, _ in answer if not any(g.matches(h) for h, _ in ref)))
     detail = {"wrong_gains": [g for g, _ in bad], "gains": len(ref), **({"unmatched_gains": stray} if stray else {})}
-    aside = (f" Poles given at {'; '.join(stray)} match none of the lab's runs and were not graded." if stray else "")
+    aside = ("" if not stray else  # the lab's gains are named only with reveal (as _wrong_text does)
+             f" Poles given at {'; '.join(stray)} match none of the lab's runs and were not graded." if env.reveal else
+             f" Poles given at {len(stray)} gain(s) that none of the lab's runs used were not graded.")
     if not bad:
         return result(name, item, "correct", 1.0, f"{fb.name(name)}: correct at every gain.{aside}", detail=detail)
     all_ok = lambda runs: runs is not None and not _score(answer, key_runs(runs), rel, absolute)  # noqa: E731

@@ -51,7 +51,12 @@ class StudentModel(BaseModel):
     @field_validator("name", "sis_user_id", "login_id", "section", "id")
     @classmethod
     def _printable(cls, v: str) -> str:
-        """Names and ids go to the LMS and the gradebook: a control character there is a typing or export slip."""
+        """Names and ids go to the LMS and the gradebook: a tab or line break pasted in reads as a space; another
+        control character is a typing or export slip, refused."""
+        if any(c in v for c in "\t\n\r"):
+            v = re.sub(r"\s*[\t\n\r]+\s*", " ", v).strip()
+            if not v:
+                raise ValueError("holds only blanks")
         bad = next((c for c in v if unicodedata.category(c) == "Cc"), None)
         if bad is not None:
             raise ValueError(f"contains a control character (U+{ord(bad):04X})")

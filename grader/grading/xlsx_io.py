@@ -86,22 +86,26 @@ def _plain(v: Any, where: str) -> Any:
 INFO_FIELDS = ("submission_id", "station")
 
 
-def _info(wb: Any, name: str, limits: Limits) -> dict[str, Any]:
-    """The info sheet's fields; an unknown one (a misspelt ``station`` would grade against the default station) is
-    refused, as a JSON submission's unknown field is."""
-    out = {}
+def _info(wb: Any, name: str, limits: Limits) -> tuple[dict[str, Any], list[str]]:
+    """The info sheet's fields (letter case aside), and notes on rows it does not read. A field close to a known
+    one (a misspelt ``station`` would grade against the default station) or ``data`` (a workbook's data are its
+    sheets) is refused."""
+    out, notes = {}, []
     for r, row in enumerate(_rows(wb["info"], "info", 50), start=1):
         cells = [_plain(_cell_value(c, "info", limits), f"{name}: sheet 'info'") for c in row[:2]]
         if len(cells) == 2 and isinstance(cells[0], str) and cells[0].strip():
             key = cells[0].strip()
-            if key not in INFO_FIELDS and not (r == 1 and key.casefold() == "field"):
-                near = difflib.get_close_matches(key, INFO_FIELDS, n=1)
-                why = ("; a workbook carries its group's data in the data sheets (calibration, flow, friction, runs)"
-                       if key == "data" else f"; did you mean {near[0]!r}?" if near else
-                       f" (the fields are {', '.join(INFO_FIELDS)})")
-                raise SubmissionError(f"{name}: sheet 'info' row {r}: unknown field {key[:40]!r}{why}")
-            out[key] = cells[1]
-    return out
+            if key.casefold() in INFO_FIELDS:
+                out[key.casefold()] = cells[1]
+            elif not (r == 1 and key.casefold() == "field"):
+                near = difflib.get_close_matches(key.casefold(), INFO_FIELDS, n=1)
+                if key.casefold() == "data" or near:
+                    why = ("a workbook carries its group's data in the data sheets (calibration, flow, friction, runs)"
+                           if not near else f"did you mean {near[0]!r}?")
+                    raise SubmissionError(f"{name}: sheet 'info' row {r}: unknown field {key[:40]!r}; {why}")
+                notes.append(f"sheet 'info' row {r}: field {key[:40]!r} is not read (the fields are "
+                             f"{', '.join(INFO_FIELDS)})")
+    return out, notes
 
 
 def _students(wb: Any, name: str, limits: Limits) -> tuple[Student, ...]:
@@ -124,7 +128,8 @@ def _answer(value: Any, unit: Any) -> Any:
         return unit
     unit = str(unit).strip() if unit is not None else ""
     text = repr(value) if isinstance(value, float) else str(value)
-    if unit and isinstance(value, str) and any(c.isdigit() for c in text) and not _bare_number(text):
+    if unit and isinstance(value, str) and any(c.isdigit() for c in text) and any(c.isalpha() for c in text) \
+            and not _bare_number(text):  # a number with a unit of its own (letters: not 0,04 nor 7.5×10⁻⁴)
         if text.replace(" ", "").endswith(unit.replace(" ", "")):  # the same unit in both: given once
             return text
         return InvalidAnswer(f"the value {text[:40]!r} carries its own unit and the unit column says {unit[:40]!r}; "
@@ -151,17 +156,17 @@ def _columns(header: list[Any]) -> tuple[int, int, int]:
 
 def _answers(wb: Any, name: str, limits: Limits) -> dict[str, Any]:
     out: dict[str, Any] = {}
-    rows: dict[str, int] = {}  # item (or design part) -> its row
+    rows: dict[str, int] = {}  # item (or design part) -> the row that answers it
     table = list(_rows(wb["answers"], "answers", 300))
     cols = _columns(table[0] if table else [])
     for r, row in enumerate(table[1:], start=2):
         item, value, unit = (_cell_value(row[j], "answers", limits) if 0 <= j < len(row) else None for j in cols)
-        if not isinstance(item, str) or not item.strip():
+        if not isinstance(item, str) or not item.strip() or value is None:  # no item, or the template's blank row
             continue
         item = item.strip()
         if item in rows:
-            raise SubmissionError(f"{name}: sheet 'answers' row {r}: {item[:40]!r} is also on row {rows[item]}; "
-                                  "give each answer once")
+            raise SubmissionError(f"{name}: sheet 'answers' row {r}: {item[:40]!r} is also answered on row "
+                                  f"{rows[item]}; give each answer once")
         rows[item] = r
         head, _, part = item.partition(".")
         if head in DESIGN_PARTS and part:
@@ -238,7 +243,7 @@ def read_xlsx(path: Path, *, limits: Limits = DEFAULT_LIMITS) -> Submission:
             missing = [s for s in ("info", "students", "answers") if s not in wb.sheetnames]
             if missing:
                 raise SubmissionError(f"{path.name}: missing sheet(s) {', '.join(missing)} (use 'grader template' for the layout)")
-            info = _info(wb, path.name, limits)
+            info, info_notes = _info(wb, path.name, limits)
             sid = str(info.get("submission_id") or "").strip()
             if not safe_id(sid):
                 raise SubmissionError(f"{path.name}: sheet 'info': submission_id {sid[:64]!r} must be 1-64 letters, digits, _ . - starting with a letter or digit")
@@ -247,7 +252,7 @@ def read_xlsx(path: Path, *, limits: Limits = DEFAULT_LIMITS) -> Submission:
                 answers["closed_loop_poles"] = _poles(wb, limits)
             answers, notes = canonical_answers(answers)
             return Submission(sid, path, _students(wb, path.name, limits), str(info.get("station") or "default")[:64],
-                              answers, _data(wb, path.name, limits), notes)
+                              answers, _data(wb, path.name, limits), (*info_notes, *notes))
         except SubmissionError as exc:
             msg = str(exc)
             raise SubmissionError(msg if msg.startswith(f"{path.name}:") else f"{path.name}: {msg}") from None

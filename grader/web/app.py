@@ -12,7 +12,7 @@ import json
 import logging
 import time
 from collections import Counter
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -73,7 +73,7 @@ class BodyLimit:
     """ASGI middleware: refuse a body over ``limit(path)`` bytes, by Content-Length or while it streams;
     ``shown(path)`` is the limit the 413 names (an upload's own, without the multipart overhead)."""
 
-    def __init__(self, app: ASGIApp, limit: Any, shown: Any) -> None:
+    def __init__(self, app: ASGIApp, limit: Callable[[str], int], shown: Callable[[str], int]) -> None:
         self.app, self.limit, self.shown = app, limit, shown
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
@@ -117,13 +117,13 @@ def _count_log(result_items: list[dict[str, Any]], elapsed: float) -> None:
              " ".join(f"{k}={v}" for k, v in sorted(counts.items())), elapsed * 1e3)
 
 
-def _error_handlers(app: FastAPI, xlsx_cap: int) -> None:
+def _error_handlers(app: FastAPI, shown: Callable[[str], int]) -> None:
     """One-line JSON errors: 400 bad JSON, 404/405 (the routing's own), 413 too large, 422 unreadable submission,
-    generic 500; ``xlsx_cap`` [bytes] is an XLSX upload's own limit."""
+    generic 500; ``shown(path)`` [bytes] is the body limit a 413 names."""
 
     @app.exception_handler(BodyTooLarge)
     async def _large(request: Request, exc: BodyTooLarge) -> JSONResponse:
-        return _too_large(xlsx_cap if request.url.path == "/api/check-file" else MAX_BODY)
+        return _too_large(shown(request.url.path))
 
     @app.exception_handler(HTTPException)
     async def _http(request: Request, exc: HTTPException) -> JSONResponse:
@@ -169,12 +169,17 @@ def create_app(service: CheckService, options: WebOptions = WebOptions(), pool: 
     previews = RateLimiter(options.checks_per_minute * 10, options.burst * 10)
     lanes = anyio.CapacityLimiter(options.threads)
     xlsx_cap = service.opts.limits.max_xlsx_bytes
-    app.add_middleware(BodyLimit, limit=lambda path: xlsx_cap + MULTIPART_OVERHEAD if path == "/api/check-file"
-                       else MAX_BODY, shown=lambda path: xlsx_cap if path == "/api/check-file" else MAX_BODY)
+
+    def shown(path: str) -> int:
+        """The body limit [bytes] of ``path``: an upload's own file limit, or that of a JSON body."""
+        return xlsx_cap if path == "/api/check-file" else MAX_BODY
+
+    app.add_middleware(BodyLimit, shown=shown,
+                       limit=lambda path: shown(path) + (MULTIPART_OVERHEAD if path == "/api/check-file" else 0))
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
     page = render_page(service.opts.rubric, service.stations())
 
-    _error_handlers(app, xlsx_cap)
+    _error_handlers(app, shown)
 
     def limited(limiter: RateLimiter, request: Request) -> JSONResponse | None:
         if limiter.allow(_client(request)):

@@ -20,6 +20,15 @@ from grader.units import parse_quantity, parse_unit, quantity_to_float, to_float
         ("6.895 kPa", "psi", 1.0000),
         ("1 ms", "s", 1e-3),
         (12, "V/in", 12.0),
+        # powers just before a closing bracket
+        ("100 lbf/(in^2)", "psi", 100.0),
+        ("0.05 (lbf*s^2)/in", "lbf*s**2/in", 0.05),
+        ("1 in**3/(mA*s**1)", "in**3/s/mA", 1.0),
+        # as the reports and the preview print them
+        ("0.0385 in³/s/mA", "in**3/s/mA", 0.0385),
+        ("0.5 lbf·s/in", "lbf*s/in", 0.5),
+        ("2.23×10⁻⁵ ft³/mA/s", "in**3/s/mA", 2.23e-5 * 1728),
+        ("3 s⁻¹", "1/s", 3.0),
     ],
 )
 def test_parse_and_convert(text: str | int, unit: str, expected: float) -> None:

@@ -15,10 +15,11 @@ from hypothesis import strategies as st
 
 from grader.cli import main
 from grader.datasets import ControllerSpec, Run, RunSpec, load
+from grader.datasets.sampling import sample_times
 from grader.errors import DatasetError, DiagnosisError
 from grader.gap.candidates import SATURATION, make_candidates
 from grader.gap.runs import (MAX_COMPARED, check_gains, control_law, cut_note, implied_feedback_gain, prepare_runs,
-                             sample_times, start_offset_note)
+                             start_offset_note)
 from grader.model.rig_setup import DAC_LIMIT
 from grader.stations import Station
 from grader.synth import make_dataset

@@ -40,10 +40,12 @@ def _check(tmp_path: Path, capsys: pytest.CaptureFixture[str], **answers: object
     ({"char_poly": "1/(s^2+"}, "characteristic polynomial: could not read your answer: cannot read it: '(' was never closed"),
     ({"char_poly": "s^3 + * 2"}, "write products with * or a space"),
     ({"char_poly": "0"}, "your characteristic polynomial is zero; the loop's is of degree 3 in s"),  # not "-inf"
+    ({}, "PD design: the loop is stable on the model identified from your group's lab data"),  # the key's model
     ({"Kq": "0.03851 in³/s/mA"}, "Kq = 0.03851 in³/s/mA: correct."),  # as the reports print it
     ({"Kce": "0,0007475 in^3/s/psi"}, "contains ',', which a quantity cannot hold (a decimal comma? write 0.04)"),
     ({"closed_loop_poles": [*POLES, {"Kp": 11, "poles": ["-1", "-2", "-3"]}]},
-     "closed-loop poles: correct at every gain. Poles given at Kp = 11 match none of the lab's runs and were not graded."),
+     "closed-loop poles: correct at every gain. Poles given at 1 gain(s) that none of the lab's runs used were not "
+     "graded."),  # grader check never names the lab's gains
     ({"closed_loop_poles": [*POLES, {**POLES[0], "poles": ["-1", "-2", "-3"]}]},  # a second, other set at Kp = 10
      "closed-loop poles: wrong at Kp = 10 (right at the other 4)."),
 ])
@@ -63,6 +65,7 @@ def test_check_feedback_is_plain(answers: dict, expected: str, tmp_path: Path,
                                                   "(and 1 more field with problems)"),
     ({"submission_id": "a", "students": [{"name": "Ada\u0001L"}]},  # would have failed the whole gradebook
      "s.json: field students.0.name: contains a control character (U+0001)"),
+    ({"submission_id": "a", "students": [{"name": "\t\n"}]}, "s.json: field students.0.name: holds only blanks"),
 ])
 def test_file_errors_are_plain(doc: dict, expected: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "s.json").write_text(json.dumps(doc))

@@ -40,6 +40,15 @@ def test_files_a_folder_holds_that_are_not_submissions_are_named(tmp_path: Path)
     assert passed_over([str(folder / "*.json")]) == []
 
 
+def test_cli_grade_notes_the_files_it_passed_over(tmp_path: Path, store: KeyStore,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    folder = _copy(tmp_path, ["correct.json"])
+    (folder / "group7.ods").write_text("x")
+    assert main(["grade", str(folder), "--out", str(tmp_path / "o"), "--no-progress", *key_args(store)]) == 0
+    assert ("note: 1 file(s) in the folders given are not submissions (.json, .yaml, .yml, .xlsx) and were not "
+            "graded: group7.ods") in capsys.readouterr().err
+
+
 def test_duplicate_ids_are_both_kept(tmp_path: Path, opts: GradeOptions, store: KeyStore) -> None:
     folder = _copy(tmp_path, ["correct.json"])
     shutil.copy(FIXTURES / "correct.json", folder / "again.json")
@@ -110,3 +119,15 @@ def test_key_without_a_quantity_marks_only_that_item(kc, opts: GradeOptions) -> 
     result = grade_submission(read_submission(FIXTURES / "correct.json"), short, opts)
     bad = [i for i in result.items if i.status != "correct"]
     assert [(i.item, i.status) for i in bad] == [("ramp_ess_P", "invalid")] and "cannot be checked" in bad[0].feedback
+
+
+def test_instructor_feedback_names_pole_gains_no_run_used(tmp_path: Path, opts: GradeOptions, store: KeyStore) -> None:
+    """With reveal (grader grade), the stray gains are named, each once; the self-check only counts them."""
+    doc = json.loads((FIXTURES / "correct.json").read_text())
+    stray = {"Kp": 11, "poles": ["-1", "-2", "-3"]}
+    doc["answers"]["closed_loop_poles"] += [stray, stray]
+    (tmp_path / "s.json").write_text(json.dumps(doc))
+    sub = read_all([tmp_path / "s.json"], opts)[0]
+    item = next(i for i in next(iter(grade_batch([sub], opts, store, workers=1))).items if i.item == "closed_loop_poles")
+    assert item.status == "correct" and item.detail["unmatched_gains"] == ["Kp = 11"]
+    assert item.feedback.endswith("Poles given at Kp = 11 match none of the lab's runs and were not graded.")

@@ -132,15 +132,18 @@ def test_xlsx_zip_bomb_and_non_zip(tmp_path: Path) -> None:
 
 
 def test_xlsx_answer_on_two_rows_is_refused_naming_both(tmp_path: Path) -> None:
-    """The second row would silently replace the first (as a JSON key given twice would)."""
+    """The second row would silently replace the first (as a JSON key given twice would). The template's own row
+    left blank, with the answer typed on a new row below, is no second answer."""
     wb = build_template(["Kq", "Kpot"], station="default", gain_unit="dimensionless")
     wb["students"].append(["Ada"])
     wb["answers"].append(["Kq", 0.04, "in^3/s/mA"])
     path = tmp_path / "g.xlsx"
     wb.save(path)
-    first = next(r[0].row for r in wb["answers"].iter_rows(min_row=2) if r[0].value == "Kq")
-    with pytest.raises(SubmissionError, match=rf"^g.xlsx: sheet 'answers' row {wb['answers'].max_row}: 'Kq' is also on "
-                                              rf"row {first}; give each answer once$"):
+    assert read_submission(path).answers["Kq"] == "0.04 in^3/s/mA"
+    wb["answers"].append(["Kq", 0.0385, "in^3/s/mA"])
+    wb.save(path)
+    with pytest.raises(SubmissionError, match=rf"^g.xlsx: sheet 'answers' row {wb['answers'].max_row}: 'Kq' is also "
+                                              rf"answered on row {wb['answers'].max_row - 1}; give each answer once$"):
         read_submission(path)
 
 
@@ -158,13 +161,21 @@ def test_xlsx_answers_are_found_by_the_header_where_a_column_was_inserted_before
 
 
 def test_xlsx_info_field_misspelt_is_refused_not_ignored(tmp_path: Path) -> None:
-    """Ignored, a misspelt station graded the group against the default station's key."""
+    """Ignored, a misspelt station graded the group against the default station's key. Letter case aside, a known
+    field reads; a field nowhere near one is a note."""
     wb = build_template(["Kq"], station="default", gain_unit="dimensionless")
     wb["students"].append(["Ada"])
-    wb["info"].append(["staton", "rig2"])
+    wb["info"].append(["notes", "late by a day"])
     path = tmp_path / "g.xlsx"
     wb.save(path)
-    with pytest.raises(SubmissionError, match=r"^g.xlsx: sheet 'info' row 4: unknown field 'staton'; did you mean "
+    assert read_submission(path).notes == ("sheet 'info' row 4: field 'notes' is not read (the fields are "
+                                           "submission_id, station)",)
+    wb["info"]["A3"], wb["info"]["B3"] = "Station", "rig7"
+    wb.save(path)
+    assert read_submission(path).station == "rig7"
+    wb["info"].append(["staton", "rig2"])
+    wb.save(path)
+    with pytest.raises(SubmissionError, match=r"^g.xlsx: sheet 'info' row 5: unknown field 'staton'; did you mean "
                                               r"'station'\?$"):
         read_submission(path)
 
@@ -173,6 +184,7 @@ def test_xlsx_info_field_misspelt_is_refused_not_ignored(tmp_path: Path) -> None
     ("0.0385 in^3/s/mA", "ft^3/s/mA", "invalid"),  # glued together, it read 'in³/s/mAft³/s/mA', of a wrong dimension
     ("0.0385 in^3/s/mA", "in^3/s/mA", "0.0385 in^3/s/mA"),  # the same unit twice: given once
     (0.0385, "in^3/s/mA", "0.0385 in^3/s/mA"),
+    ("3.85×10⁻²", "in^3/s/mA", "3.85×10⁻² in^3/s/mA"),  # no unit of its own: the column's
 ])
 def test_xlsx_value_with_its_own_unit_and_a_unit_column(tmp_path: Path, value: object, unit: str, read: str) -> None:
     wb = build_template(["Kq"], station="default", gain_unit="dimensionless")
@@ -186,3 +198,8 @@ def test_xlsx_value_with_its_own_unit_and_a_unit_column(tmp_path: Path, value: o
         assert isinstance(got, InvalidAnswer) and "carries its own unit and the unit column says 'ft^3/s/mA'" in got.reason
     else:
         assert got == read
+
+
+def test_a_tab_or_line_break_in_a_name_reads_as_a_space(tmp_path: Path) -> None:
+    sub = read_submission(_write(tmp_path, "s.json", {"submission_id": "s", "students": [{"name": "Ada\tLovelace\n"}]}))
+    assert sub.students[0].name == "Ada Lovelace"

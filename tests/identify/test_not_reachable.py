@@ -58,6 +58,17 @@ def test_missing_p_ramp_run_makes_the_ramp_error_not_reachable(station: Station,
     assert key.quantities["Kp_25_overshoot"].reachable
 
 
+def test_a_p_ramp_run_that_does_not_ramp_has_no_ramp_error(station: Station, tmp_path: Path) -> None:
+    """Its rows cut before the ramp starts, the run's command is flat: the key once predicted 0 in, status ok."""
+    root = make_dataset(station, tmp_path / "ds", seed=5)
+    lines = (root / "ramp_p.csv").read_text().splitlines()
+    (root / "ramp_p.csv").write_text("\n".join(lines[:60]) + "\n")
+    e = build_key(load(root)).quantities["ramp_ess_P"]
+    assert e.status == "not_identifiable" and e.value is None
+    assert re.fullmatch(r"the P ramp run ramp_p's command does not ramp over its second half \(slope -?0 in/s\): "
+                        r"there is no steady ramp error to predict", e.reason or "")
+
+
 SPEED = np.array([0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 6.0])
 
 

@@ -70,6 +70,8 @@ def test_page_in_chromium(base_url: str, kc: KeyContext, key_numbers: Callable[[
             shown = status.replace("_", " ")  # the status code in words
             expect(page.get_by_test_id(f"result-{item}")).to_contain_text(re.compile(rf"^{shown}\b"))
         assert "Kq" in page.get_by_test_id("result-Kq").inner_text()
+        expect(page.get_by_test_id("answer-char_poly")).to_have_attribute("aria-invalid", "true")  # unreadable
+        expect(page.get_by_test_id("answer-Kq")).not_to_have_attribute("aria-invalid", "true")
         html = page.content()
         page.set_viewport_size({"width": 360, "height": 800})  # phone width: nothing wider than the screen
         assert page.evaluate("document.documentElement.scrollWidth") <= 360
