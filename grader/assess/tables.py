@@ -65,10 +65,12 @@ def _read_csv(path: Path) -> list[list[str]]:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError:
         text = raw.decode("cp1252", errors="replace")
+    reader = csv.reader(io.StringIO(text, newline=""))
+    rows: list[list[str]] = []
     try:
-        rows = [list(row) for row in csv.reader(io.StringIO(text, newline=""))]
-    except csv.Error as exc:
-        raise AssessmentError(f"{path}: not a valid CSV file ({exc})") from exc
+        rows.extend(list(row) for row in reader)
+    except csv.Error as exc:  # the reader's line_num: the file line where the bad record ends
+        raise AssessmentError(f"{path}: not a valid CSV file at line {reader.line_num} ({exc})") from exc
     if rows and (sep := other_separator(rows[0])) is not None:
         raise AssessmentError(f"{path}: this file uses {sep!r} as separator; save it as CSV with commas (,)")
     return rows

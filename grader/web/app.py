@@ -219,6 +219,8 @@ def create_app(service: CheckService, options: WebOptions = WebOptions(), pool: 
     async def check_file(request: Request, file: UploadFile) -> JSONResponse:
         if (refused := limited(checks, request)) is not None:
             return refused
+        if len((await request.form()).getlist("file")) > 1:  # FastAPI would check the last one alone
+            return _error(422, "file: upload one submission file at a time")
         name = Path(file.filename or "upload").name
         suffix = Path(name).suffix.lower()
         if suffix not in (".json", ".yaml", ".yml", ".xlsx"):

@@ -155,6 +155,12 @@ def test_a_response_pasted_twice_is_refused_naming_both_rows(tmp_path: Path, nam
     assert f"row {len(rows)}: respondent {rows[first + 5][col]!r} is also on row {first + 6}" in message
 
 
+def test_a_cell_over_the_csv_field_limit_is_named_by_its_line(tmp_path: Path) -> None:
+    rows = _rows("survey_template.csv")
+    rows[4][-1] = "x" * 140_000  # a pasted essay: over the csv module's 131072 characters
+    assert "not a valid CSV file at line 5 (field larger than field limit" in _error(_write(tmp_path / "t.csv", rows))
+
+
 def test_duplicated_column(tmp_path: Path) -> None:
     rows = [[*row, row[2]] for row in _rows("survey_template.csv")]
     assert "appears more than once" in _error(_write(tmp_path / "t.csv", rows))

@@ -144,6 +144,9 @@ def test_upload_type_and_broken_files(client: TestClient) -> None:
     assert r.status_code == 422 and "\n" not in r.json()["error"]
     r = client.post("/api/check-file", files={"file": ("group 7.yaml", b"a: &x [1]\nb: *x\n")})
     assert r.status_code == 422 and r.json()["error"].startswith("group_7.yaml: YAML aliases")
+    doc = (FIXTURES / "correct.json").read_bytes()
+    r = client.post("/api/check-file", files=[("file", ("a.json", doc)), ("file", ("b.json", doc))])
+    assert r.status_code == 422 and r.json()["error"] == "file: upload one submission file at a time"
     for r in (client.post("/api/check-file"), client.post("/api/check-file", files={"file": ("", b"{}")})):
         assert r.status_code == 422 and r.json()["error"].startswith("file: no submission file in the upload")
 
