@@ -107,6 +107,8 @@ def parse_quantity(text: str | float | int, *, where: str = "quantity", default_
     if isinstance(text, bool):
         raise UnitError(f"{where}: expected a number with a unit, got a boolean")
     if isinstance(text, (int, float)):
+        if isinstance(text, int) and abs(text) > 10**300:  # float() would overflow
+            raise UnitError(f"{where}: a number too large ({len(str(abs(text)))} digits)")
         if not math.isfinite(float(text)):
             raise UnitError(f"{where}: value is not a finite number")
         return Q_(float(text), default_unit or "dimensionless")

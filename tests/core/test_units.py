@@ -56,6 +56,11 @@ def test_hostile_or_bad_quantities_raise_unit_error(text: str, words: str) -> No
         parse_quantity(text, where="answers.Kq")
 
 
+def test_an_integer_too_large_for_a_float_is_a_unit_error() -> None:
+    with pytest.raises(UnitError, match=r"^answers.Kq: a number too large \(401 digits\)$"):
+        parse_quantity(10**400, where="answers.Kq")
+
+
 def test_wrong_dimension_is_named() -> None:
     with pytest.raises(UnitError, match=r"^answers.Kq: psi is a pressure; expected a flow per current \(in³/s/mA\)$"):
         quantity_to_float("3 psi", "in**3/s/mA", where="answers.Kq")
