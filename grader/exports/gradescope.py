@@ -102,8 +102,8 @@ def package_zip(repo: Path, rubric_file: Path, *, convention: str) -> bytes:
     ]
     files = _files(repo, "grader", (".py", ".yaml", ".yml", ".json", ".html", ".j2", ".css", ".md"))
     files += [p for rel in ("pyproject.toml", "README.md") if (repo / rel).is_file() for p in [repo / rel]]
-    for rel in ("reference_solutions/stations", "reference_solutions/datasets", "reference_solutions/keys",
-                "submissions_fixtures/grading", "submissions_fixtures/assessment"):
+    for rel in ("rubrics", "reference_solutions/stations", "reference_solutions/datasets", "reference_solutions/keys",
+                "submissions_fixtures/grading", "submissions_fixtures/assessment"):  # rubrics: the demo's default
         if (repo / rel).is_dir():
             files += _files(repo, rel)
     entries += [(p.relative_to(repo).as_posix(), p.read_bytes(), 0o644) for p in files]

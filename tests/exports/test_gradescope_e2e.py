@@ -23,6 +23,7 @@ import pytest
 
 from grader.demo import _steps
 from grader.exports.gradescope import package_zip
+from grader.grading.commands import DEFAULT_RUBRIC
 from grader.grading.rubric import load_rubric
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -112,8 +113,11 @@ def test_setup_installs_the_grader_from_the_unzipped_source(autograder: Path) ->
 
 
 def test_the_zip_carries_what_the_warm_up_demo_reads(autograder: Path) -> None:
+    """Its inputs, and the default rubric that grade and check read when none is given (setup.sh's warm-up, under
+    set -e, failed the image build without it)."""
     inputs = [Path(a) for _, argv in _steps(Path("/nonexistent-out")) for a in argv if a.startswith(str(ROOT))]
-    assert inputs
+    inputs.append(ROOT / DEFAULT_RUBRIC)
+    assert len(inputs) > 1
     missing = [p.relative_to(ROOT) for p in inputs if not (autograder / "source" / p.relative_to(ROOT)).exists()]
     assert not missing
 
