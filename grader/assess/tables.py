@@ -13,6 +13,7 @@ import io
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 from xml.etree import ElementTree
 
 from grader.datasets.csvio import other_separator
@@ -44,16 +45,18 @@ def read_table(path: Path) -> Table:
     """Read ``path`` (CSV or XLSX); raise if unreadable or empty."""
     path = Path(path)
     suffix = path.suffix.lower()
+    name = str(path)
     if suffix in CSV_SUFFIXES:
         raw = _read_csv(path)
     elif suffix in XLSX_SUFFIXES:
-        raw = _read_xlsx(path)
+        raw, sheet = _read_xlsx(path)
+        name = name if sheet is None else f"{path} (sheet {sheet!r})"
     else:
         raise AssessmentError(f"{path}: unsupported file type {suffix or '(none)'}; use .csv or .xlsx")
     rows = _trim(raw)
     if not rows:
-        raise AssessmentError(f"{path}: the file is empty")
-    return Table(name=str(path), rows=rows)
+        raise AssessmentError(f"{name}: the file is empty")
+    return Table(name=name, rows=rows)
 
 
 def _read_csv(path: Path) -> list[list[str]]:
@@ -82,8 +85,10 @@ MAX_ROWS = 20_000
 MAX_COLS = 500
 
 
-def _read_xlsx(path: Path) -> list[list[str]]:
-    """The first sheet's cells as text, bounded: file size, unpacked size, rows and columns."""
+def _read_xlsx(path: Path) -> tuple[list[list[str]], str | None]:
+    """The cells of the sheet to read as text, bounded (file size, unpacked size, rows and columns), and its name
+    where the workbook has other sheets (else None). The sheet to read is the active one, or the only visible one:
+    never a hidden sheet (an old copy kept out of sight was once read instead of the visible data)."""
     from openpyxl import load_workbook
     from openpyxl.utils.exceptions import InvalidFileException
 
@@ -96,7 +101,7 @@ def _read_xlsx(path: Path) -> list[list[str]]:
                 raise AssessmentError(f"{path}: workbook unpacks to more than {MAX_XLSX_UNZIPPED / 1e6:g} MB")
         workbook = load_workbook(path, read_only=True, data_only=True)
         try:
-            sheet = workbook.worksheets[0]
+            sheet = _sheet_to_read(path, workbook)
             rows: list[list[str]] = []
             # one row and one column past the caps, to tell "exactly at the limit" from "beyond it"
             for n, row in enumerate(sheet.iter_rows(max_row=MAX_ROWS + 1, max_col=MAX_COLS + 1, values_only=True)):
@@ -108,12 +113,25 @@ def _read_xlsx(path: Path) -> list[list[str]]:
                 if n >= MAX_ROWS and cells:
                     raise AssessmentError(f"{path}: more than {MAX_ROWS} rows")
                 rows.append(cells)
-            return rows[:MAX_ROWS]
+            return rows[:MAX_ROWS], sheet.title if len(workbook.worksheets) > 1 else None
         finally:
             workbook.close()
     except (OSError, zipfile.BadZipFile, InvalidFileException, ElementTree.ParseError,
             KeyError, IndexError, TypeError, ValueError) as exc:
         raise AssessmentError(f"{path}: not a readable XLSX workbook ({exc})") from exc
+
+
+def _sheet_to_read(path: Path, workbook: Any) -> Any:
+    """The active sheet where it is visible, else the only visible one; several visible and none active: refused."""
+    visible = [ws for ws in workbook.worksheets if ws.sheet_state == "visible"]
+    active = workbook.active
+    if active is not None and active in visible:
+        return active
+    if len(visible) == 1:
+        return visible[0]
+    names = ", ".join(repr(ws.title) for ws in visible) or "none"
+    raise AssessmentError(f"{path}: cannot tell which sheet holds the data (visible sheets: {names}); keep it as "
+                          "the only visible sheet, or save the workbook with it open")
 
 
 def _cell_text(value: object) -> str:

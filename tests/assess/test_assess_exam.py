@@ -141,3 +141,24 @@ def test_a_required_column_given_twice_is_refused_naming_both(tmp_path: Path) ->
     rows = [[*HEADER, "group"], *([f"s{i}", g, "p", "3", "5", "60", "100", "with_lab_reference"]
                                   for i, g in enumerate(["with_lab_reference", "without_lab_reference"] * 3))]
     assert 'column "group" appears more than once (columns B and H)' in _error(_write(tmp_path / "s.csv", rows))
+
+
+def test_an_xlsx_is_read_from_its_visible_sheet_not_a_hidden_first_one(tmp_path: Path) -> None:
+    """A hidden old copy first in the workbook was read instead of the data (2 students, exit 0)."""
+    from openpyxl import Workbook
+
+    wb = Workbook()
+    old = wb.active
+    old.title, old.sheet_state = "old", "hidden"
+    old.append(HEADER)
+    old.append(["s1", "with_lab_reference", "p", "3", "5", "60", "100"])
+    data = wb.create_sheet("scores")
+    data.append(HEADER)
+    for i, g in enumerate(["with_lab_reference", "without_lab_reference"] * 4):
+        data.append([f"s{i}", g, "p", str(i % 5), "5", str(50 + i), "100"])
+    wb.active = data
+    wb.save(tmp_path / "s.xlsx")
+    assert len(read_exam_scores(tmp_path / "s.xlsx").group) == 8
+    data.append(["s0", "with_lab_reference", "p", "3", "5", "60", "100"])  # an error names the sheet read
+    wb.save(tmp_path / "s.xlsx")
+    assert _error(tmp_path / "s.xlsx").startswith(f"{tmp_path / 's.xlsx'} (sheet 'scores'), row 10")
