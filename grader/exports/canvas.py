@@ -27,9 +27,10 @@ def latest(results: Iterable[SubmissionResult], times: Mapping[str, float]) -> d
     """Each student's (by :func:`student_key`) graded submission.
 
     The rule (docs/reference/report-files.md): a student's grade comes from their latest
-    submission by file time (``times``: submission id -> modification time in seconds); equal
-    times go to the higher score, then to the later submission id."""
-    rank = lambda r: (times.get(r.submission_id, 0.0), r.score, r.submission_id)  # noqa: E731
+    submission by file time (``times``: submission id -> modification time in seconds) among those
+    that could be graded (one that could not, such as a second file under the same submission id,
+    only where none could); equal times go to the higher score, then to the later submission id."""
+    rank = lambda r: (r.valid, times.get(r.submission_id, 0.0), r.score, r.submission_id)  # noqa: E731
     out: dict[str, SubmissionResult] = {}
     for r in results:
         for s in r.students:

@@ -54,6 +54,20 @@ def test_latest_submission_by_file_time_then_score() -> None:
     assert {s["submission_id"]: s["superseded_by"] for s in report["submissions"]} == {"g-00": None, "g-01": "g-00"}
 
 
+def test_a_later_submission_that_could_not_be_graded_never_replaces_one_that_was() -> None:
+    """A second file under the same submission_id is invalid (score 0): picked as the latest, it zeroed the students'
+    grade in grades.csv."""
+    again = SubmissionResult("g-01~2", "g_v2.json", GOOD.students, tuple(ItemResult(i.item, "invalid", 0.0, i.max_points,
+                                                                                        "not graded") for i in ITEMS),
+                             valid=False, error="duplicate submission_id 'g-01' (also in g.json)")
+    assert superseded([GOOD, again], {"g-01": 1.0, "g-01~2": 2.0}) == {"g-01~2": "g-01"}
+    rows = list(csv.reader(io.StringIO(canvas_csv([GOOD, again], assignment="L", assignment_id="1",
+                                                  times={"g-01": 1.0, "g-01~2": 2.0}))))[1:]
+    assert [(r[0], r[5]) for r in rows] == [("Ada Lovelace", score_text(GOOD.score)), ("Alan Turing", score_text(GOOD.score))]
+    third = SubmissionResult("g-01~3", "g_v3.json", GOOD.students, again.items, valid=False, error="x")
+    assert superseded([again, third], {"g-01~2": 2.0, "g-01~3": 3.0}) == {"g-01~2": "g-01~3"}  # none graded: latest
+
+
 def test_gradescope_results_schema() -> None:
     data = json.loads(results_json(GOOD))
     assert data["score"] == 7.0 and {"tests", "output", "visibility"} <= set(data)
