@@ -68,6 +68,19 @@ def test_a_later_submission_that_could_not_be_graded_never_replaces_one_that_was
     assert superseded([again, third], {"g-01~2": 2.0, "g-01~3": 3.0}) == {"g-01~2": "g-01~3"}  # none graded: latest
 
 
+def test_one_row_per_student_whichever_of_their_ids_a_submission_gives() -> None:
+    """Listed twice in one submission, or with the Canvas id in one and only the SIS id in a later one: one row,
+    from the later submission (two rows with one SIS id would make Canvas's import ambiguous)."""
+    ada = GOOD.students[0]
+    twice = SubmissionResult("g-03", "g3.json", (ada, ada), ITEMS)
+    later = SubmissionResult("g-04", "g4.json", (Student("Ada L.", ada.sis_user_id),), ITEMS[1:])
+    rows = list(csv.reader(io.StringIO(canvas_csv([twice, later], assignment="L", assignment_id="1",
+                                                  times={"g-03": 1.0, "g-04": 2.0}))))[1:]
+    assert rows == [["Ada L.", "", "1001", "", "", score_text(later.score)]]
+    assert superseded([twice, later], {"g-03": 1.0, "g-04": 2.0}) == {"g-03": "g-04"}
+    assert len(list(csv.reader(io.StringIO(canvas_csv([twice], assignment="L", assignment_id="1"))))) == 2
+
+
 def test_gradescope_results_schema() -> None:
     data = json.loads(results_json(GOOD))
     assert data["score"] == 7.0 and {"tests", "output", "visibility"} <= set(data)
