@@ -76,7 +76,9 @@ def read_all(paths: Sequence[Path], opts: GradeOptions) -> list[Read]:
         sid = sub.submission_id
         if sid.casefold() in seen:  # case-insensitively: output file names must not collide on any OS
             unique = next(f"{sid}~{n}" for n in range(2, len(paths) + 2) if f"{sid}~{n}".casefold() not in seen)
-            error = f"duplicate submission_id {sid!r} (also in {seen[sid.casefold()].name}); rename one"
+            own = sub.error if isinstance(sub, SubmissionResult) else None  # unreadable: its own error, not the
+            # collision of two ids made from file names (ä.json and -.json are both 'submission')
+            error = own or f"duplicate submission_id {sid!r} (also in {seen[sid.casefold()].name}); rename one"
             sub = invalid_submission(unique, str(path), error, opts.rubric, sub.students)
             sid = unique
         seen[sid.casefold()] = path

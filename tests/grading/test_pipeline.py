@@ -49,6 +49,16 @@ def test_cli_grade_notes_the_files_it_passed_over(tmp_path: Path, store: KeyStor
             "graded: group7.ods") in capsys.readouterr().err
 
 
+def test_unreadable_files_whose_names_make_one_id_keep_their_own_errors(tmp_path: Path, opts: GradeOptions) -> None:
+    """ä.json and -.json both fall back to the id 'submission': the second said 'duplicate submission_id', hiding that
+    it is not valid JSON."""
+    for name in ("ä.json", "-.json"):
+        (tmp_path / name).write_text("{bad")
+    subs = read_all(sorted(tmp_path.iterdir()), opts)
+    assert [s.submission_id for s in subs] == ["submission", "submission~2"]
+    assert all("not valid JSON" in s.error and "duplicate" not in s.error for s in subs)
+
+
 def test_duplicate_ids_are_both_kept(tmp_path: Path, opts: GradeOptions, store: KeyStore) -> None:
     folder = _copy(tmp_path, ["correct.json"])
     shutil.copy(FIXTURES / "correct.json", folder / "again.json")
