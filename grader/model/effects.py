@@ -122,7 +122,7 @@ def parse_param(effect: str, param: str, text: str | float) -> float:
     where = f"{effect}:{param}"
     try:
         q = parse_quantity(text, where=where)
-        if spec.unit not in ("dimensionless", "bit") and q.unitless:
+        if spec.unit not in ("dimensionless", "bit") and q.unitless and q.magnitude != 0:  # zero is zero in any unit
             raise SimulationError(f"{where}: {text!r} needs a unit, e.g. '{spec.default:g} {spec.unit}'")
         value = to_float(q, spec.unit, where=where) if not q.unitless else float(q.magnitude)
     except UnitError:

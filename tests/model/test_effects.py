@@ -47,6 +47,7 @@ def test_defaults_and_typical_ranges_lie_inside_the_admissible_range(name: str) 
         ("sensor_quantization:bits=12 bit", "sensor_quantization", "bits", 12.0),
         ("valve_dynamics:tau=2ms,order=2", "valve_dynamics", "order", 2.0),
         ("valve_dynamics", "valve_dynamics", "tau", EFFECTS["valve_dynamics"].param("tau").default),
+        ("sampling_delay:delay=0", "sampling_delay", "delay", 0.0),  # zero needs no unit
     ],
 )
 def test_parse_converts_quantities_to_internal_units(text: str, effect: str, param: str, value: float) -> None:
