@@ -113,12 +113,35 @@ def _read_xlsx(path: Path) -> tuple[list[list[str]], str | None]:
                 if n >= MAX_ROWS and cells:
                     raise AssessmentError(f"{path}: more than {MAX_ROWS} rows")
                 rows.append(cells)
+            _refuse_unsaved_formulas(path, sheet, rows)
             return rows[:MAX_ROWS], sheet.title if len(workbook.worksheets) > 1 else None
         finally:
             workbook.close()
     except (OSError, zipfile.BadZipFile, InvalidFileException, ElementTree.ParseError,
             KeyError, IndexError, TypeError, ValueError) as exc:
         raise AssessmentError(f"{path}: not a readable XLSX workbook ({exc})") from exc
+
+
+def _refuse_unsaved_formulas(path: Path, sheet: Any, rows: list[list[str]]) -> None:
+    """A formula cell without the value its spreadsheet saved reads as empty: a missing answer, silently. Refused,
+    naming the first such cell (files Excel or LibreOffice saved always hold the value; generated ones may not).
+    The workbook is read a second time, with the formulas, only where a sheet's XML holds one."""
+    from openpyxl import load_workbook
+
+    with zipfile.ZipFile(path) as archive:
+        if not any(b"<f" in archive.read(n) for n in archive.namelist()
+                   if n.startswith("xl/worksheets/") and n.endswith(".xml")):
+            return
+    formulas = load_workbook(path, read_only=True, data_only=False)
+    try:
+        for n, row in enumerate(formulas[sheet.title].iter_rows(max_row=len(rows), max_col=MAX_COLS)):
+            for j, cell in enumerate(row):
+                text = cell.value
+                if isinstance(text, str) and text.startswith("=") and not (j < len(rows[n]) and rows[n][j]):
+                    raise AssessmentError(f"{path}: cell {cell.coordinate} holds a formula ({text[:40]}) with no saved "
+                                          "value; open and save the file in Excel or LibreOffice, or paste the values")
+    finally:
+        formulas.close()
 
 
 def _sheet_to_read(path: Path, workbook: Any) -> Any:

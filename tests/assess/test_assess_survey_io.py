@@ -231,3 +231,13 @@ def test_fixtures_are_reproducible(tmp_path: Path) -> None:
     assert len(written) == 11
     for name in written:
         assert (tmp_path / name).read_bytes() == (FIXTURES / name).read_bytes(), name
+
+
+def test_a_formula_cell_without_a_saved_value_is_named_not_read_as_missing(tmp_path: Path) -> None:
+    """openpyxl saves no value for a formula: read as empty, it made ratings missing without a word."""
+    wb = Workbook()
+    for row in _rows("survey_template.csv"):
+        wb.active.append(row)
+    wb.active["O3"] = "=2+3"
+    wb.save(tmp_path / "t.xlsx")
+    assert "cell O3 holds a formula (=2+3) with no saved value" in _error(tmp_path / "t.xlsx")
