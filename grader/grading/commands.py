@@ -74,6 +74,9 @@ def _grade(args: argparse.Namespace) -> int:
     from grader.grading.pipeline import expand_inputs, grade_batch, passed_over, read_all
     from grader.grading.submissions import SUFFIXES
 
+    for flag, given in (("--assignment", args.assignment), ("--assignment-id", args.assignment_id)):
+        if given is not None and (not given.strip() or not given.isprintable()):  # it heads a grades.csv column
+            raise GraderError(f"{flag}: {given[:60]!r} must be one line of text, not blank")
     out = output_folder(args.out)
     rubric = _rubric(args)
     opts = _options(args, rubric, reveal=True)

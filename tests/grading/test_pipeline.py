@@ -59,6 +59,14 @@ def test_unreadable_files_whose_names_make_one_id_keep_their_own_errors(tmp_path
     assert all("not valid JSON" in s.error and "duplicate" not in s.error for s in subs)
 
 
+@pytest.mark.parametrize("name", [" ", "Lab 4\nextra"])
+def test_a_blank_or_multi_line_assignment_name_is_refused(name: str, tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """It heads the grades.csv column Canvas imports."""
+    assert main(["grade", str(FIXTURES / "correct.json"), "--out", str(tmp_path / "o"), "--assignment", name]) == 2
+    assert "--assignment: " in capsys.readouterr().err and not (tmp_path / "o").exists()
+
+
 def test_duplicate_ids_are_both_kept(tmp_path: Path, opts: GradeOptions, store: KeyStore) -> None:
     folder = _copy(tmp_path, ["correct.json"])
     shutil.copy(FIXTURES / "correct.json", folder / "again.json")
