@@ -181,9 +181,12 @@ def _gradescope(args: argparse.Namespace) -> int:
     rubric = _rubric(args)
     opts = _options(args, rubric, reveal=args.reveal)
     folder = Path(args.submission_dir)
-    files = sorted(f for f in folder.iterdir() if f.is_file() and f.suffix.lower() in SUFFIXES) if folder.is_dir() else []
+    found = _uploaded(folder)
+    files = [f for f in found if f.suffix.lower() in SUFFIXES]
     if len(files) != 1:
-        what = "no submission file" if not files else f"{len(files)} submission files ({', '.join(f.name for f in files)})"
+        others = [f.relative_to(folder).as_posix() for f in found if f not in files][:5]
+        what = (f"{len(files)} submission files ({', '.join(f.relative_to(folder).as_posix() for f in files)})" if files
+                else "no submission file" + (f" (only {', '.join(others)})" if others else ""))
         result = invalid_submission("submission", str(folder), f"found {what}; upload exactly one "
                                     f"{'/'.join(SUFFIXES)} file", rubric)
     else:
@@ -191,6 +194,19 @@ def _gradescope(args: argparse.Namespace) -> int:
     write_text(args.results, results_json(result))
     print(f"score {result.score:g} / {result.max_score:g}; wrote {args.results}")
     return 0
+
+
+def _uploaded(folder: Path) -> list[Path]:
+    """The files a student uploaded: those at the top of ``folder``, or, where none is a submission, those in its
+    subfolders (a zip upload unpacks into one), without hidden files and macOS's ``__MACOSX`` copies."""
+    from grader.grading.submissions import SUFFIXES
+
+    if not folder.is_dir():
+        return []
+    shown = [f for f in sorted(folder.rglob("*")) if f.is_file()
+             and not any(p.startswith(".") or p == "__MACOSX" for p in f.relative_to(folder).parts)]
+    top = [f for f in shown if f.parent == folder]
+    return top if any(f.suffix.lower() in SUFFIXES for f in top) else shown
 
 
 def _grade_single(path: Path, opts: GradeOptions, store: KeyStore, rubric: Rubric) -> SubmissionResult:

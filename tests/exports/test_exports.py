@@ -150,11 +150,15 @@ def test_gradescope_package(tmp_path: Path) -> None:
     ([], True, "no submission file"),
     (["a.json", "b.json"], True, "2 submission files"),
     (["garbage.json"], True, "not valid JSON"),
+    (["answers.txt"], True, "found no submission file (only answers.txt); upload exactly one"),
+    (["lab4/garbage.json", "__MACOSX/lab4/._garbage.json"], True, "not valid JSON"),  # a zip upload: graded inside
+    (["lab4/a.json", "lab4/b.yaml"], True, "2 submission files (lab4/a.json, lab4/b.yaml)"),
 ])
 def test_gradescope_verb_paths(tmp_path: Path, files: list[str], score_zero: bool, message: str) -> None:
     sub = tmp_path / "submission"
     sub.mkdir()
     for f in files:
+        (sub / f).parent.mkdir(parents=True, exist_ok=True)
         (sub / f).write_text("{ not json")
     out = tmp_path / "results" / "results.json"
     assert main(["gradescope", "--submission-dir", str(sub), "--results", str(out)]) == 0
