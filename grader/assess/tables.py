@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import datetime as dt
 import io
+import re
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -101,7 +102,7 @@ def _read_xlsx(path: Path) -> tuple[list[list[str]], str | None]:
                 raise AssessmentError(f"{path}: workbook unpacks to more than {MAX_XLSX_UNZIPPED / 1e6:g} MB")
         workbook = load_workbook(path, read_only=True, data_only=True)
         try:
-            sheet = _sheet_to_read(path, workbook)
+            sheet = _sheet_to_read(workbook)
             rows: list[list[str]] = []
             # one row and one column past the caps, to tell "exactly at the limit" from "beyond it"
             for n, row in enumerate(sheet.iter_rows(max_row=MAX_ROWS + 1, max_col=MAX_COLS + 1, values_only=True)):
@@ -122,6 +123,10 @@ def _read_xlsx(path: Path) -> tuple[list[list[str]], str | None]:
         raise AssessmentError(f"{path}: not a readable XLSX workbook ({exc})") from exc
 
 
+#: A cell formula in a sheet's XML (``<f>…</f>``, ``<f t="shared" …>``; not a data validation's ``<formula1>``).
+_FORMULA = re.compile(rb"<f[ >/]")
+
+
 def _refuse_unsaved_formulas(path: Path, sheet: Any, rows: list[list[str]]) -> None:
     """A formula cell without the value its spreadsheet saved reads as empty: a missing answer, silently. Refused,
     naming the first such cell (files Excel or LibreOffice saved always hold the value; generated ones may not).
@@ -129,7 +134,7 @@ def _refuse_unsaved_formulas(path: Path, sheet: Any, rows: list[list[str]]) -> N
     from openpyxl import load_workbook
 
     with zipfile.ZipFile(path) as archive:
-        if not any(b"<f" in archive.read(n) for n in archive.namelist()
+        if not any(_FORMULA.search(archive.read(n)) for n in archive.namelist()
                    if n.startswith("xl/worksheets/") and n.endswith(".xml")):
             return
     formulas = load_workbook(path, read_only=True, data_only=False)
@@ -144,17 +149,13 @@ def _refuse_unsaved_formulas(path: Path, sheet: Any, rows: list[list[str]]) -> N
         formulas.close()
 
 
-def _sheet_to_read(path: Path, workbook: Any) -> Any:
-    """The active sheet where it is visible, else the only visible one; several visible and none active: refused."""
-    visible = [ws for ws in workbook.worksheets if ws.sheet_state == "visible"]
+def _sheet_to_read(workbook: Any) -> Any:
+    """The active sheet where it is visible (Excel and LibreOffice never save a hidden one active), else the first
+    visible one."""
     active = workbook.active
-    if active is not None and active in visible:
+    if active is not None and active.sheet_state == "visible":
         return active
-    if len(visible) == 1:
-        return visible[0]
-    names = ", ".join(repr(ws.title) for ws in visible) or "none"
-    raise AssessmentError(f"{path}: cannot tell which sheet holds the data (visible sheets: {names}); keep it as "
-                          "the only visible sheet, or save the workbook with it open")
+    return next((ws for ws in workbook.worksheets if ws.sheet_state == "visible"), active)
 
 
 def _cell_text(value: object) -> str:

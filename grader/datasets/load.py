@@ -14,7 +14,7 @@ from pydantic import ValidationError
 
 from grader import untrusted
 from grader.datasets.csvio import Table, read_rows, read_table, write_table
-from grader.datasets.sampling import sample_times
+from grader.datasets.sampling import check_rows
 from grader.datasets.schema import CALIBRATION, FLOW_TEST, FRICTION, RUN, Manifest, RunSpec
 from grader.errors import DatasetError, GraderError, validation_message
 from grader.model.params import Controller
@@ -157,7 +157,7 @@ def load(root: str | Path) -> Dataset:
         table, lines = read_rows(root / spec.file, RUN)
         run = Run(spec=spec, t=table["t"], r=table["r"], y=table["y"], u=table.get("u"), lines=lines)
         _check_run(run)
-        sample_times(run, given["sample_time"])  # one row per controller sample
+        check_rows(run, given["sample_time"])  # one row per controller sample
         runs.append(run)
     files = [n for n in (manifest.calibration, manifest.flow_test, manifest.friction) if n]
     files += [r.file for r in manifest.runs]

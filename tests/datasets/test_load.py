@@ -220,6 +220,22 @@ def test_a_missing_sample_or_a_wrong_sample_time_is_refused_by_every_verb(ds: Pa
     assert not (ds.parent / "key.json").exists()
 
 
+def test_a_late_stamp_loads_though_the_diagnosis_cannot_place_it(ds: Path) -> None:
+    """A logger's jitter (one row 0.3 of a sample late, stamps printed to the microsecond) is no missing sample: the
+    load (and so a key) takes it; the diagnosis, which puts every row on its sample, names it."""
+    from grader.datasets.sampling import sample_times
+
+    lines = (ds / "ramp_p.csv").read_text().splitlines()
+    for k in range(1, len(lines)):
+        cells = lines[k].split(",")
+        cells[0] = f"{float(cells[0]) + 0.000123 + (0.0003 if k == 100 else 0.0):.6f}"  # stamps off the ms
+        lines[k] = ",".join(cells)
+    (ds / "ramp_p.csv").write_text("\n".join(lines) + "\n")
+    run = next(r for r in load(ds).runs if r.name == "ramp_p")
+    with pytest.raises(DatasetError, match=r"\(row 101 is 1\.3 ms after the one before\)"):
+        sample_times(run, 0.001)
+
+
 def test_a_reading_too_large_for_any_rig_is_named(ds: Path) -> None:
     """Beyond 1e12 in internal units, sums of squares over a run could overflow (the diagnosis failed on 1e300)."""
     lines = (ds / "step_kp10.csv").read_text().splitlines()
