@@ -18,6 +18,7 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from grader import __version__
@@ -62,13 +63,13 @@ class KeyEntry(BaseModel):
 
 class ModelBlock(BaseModel):
     """The identified linear model, in the units of :data:`MODEL_UNITS` (``beta_over_Vt`` and
-    ``Kce`` null when the dataset cannot give them)."""
+    ``Kce`` null when the dataset cannot give them; ``Kq`` too when the flow test cannot)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
     A: float = Field(gt=0)
     M: float = Field(gt=0)
     Kamp: float = Field(gt=0)
-    Kq: float = Field(gt=0)
+    Kq: float | None = Field(gt=0)
     Kpot: float = Field(gt=0)
     beta_over_Vt: float | None = Field(gt=0)
     Kce: float | None = Field(ge=0)
@@ -95,7 +96,7 @@ class Key(BaseModel):
     def params(self) -> RigParams:
         """The identified linear model (KeyFileError when the data could not give β/Vt and Kce)."""
         m = self.model
-        if m.beta_over_Vt is None or m.Kce is None:
+        if m.beta_over_Vt is None or m.Kce is None or m.Kq is None:
             why = self.quantities["Kce"].reason if "Kce" in self.quantities else None
             raise KeyFileError(f"key for {self.station}: the model is not identifiable ({why or 'β/Vt and Kce are null'})")
         return RigParams(A=m.A, M=m.M, Kamp=m.Kamp, Kq=m.Kq, Kpot=m.Kpot, beta_over_Vt=m.beta_over_Vt, Kce=m.Kce,
@@ -104,8 +105,8 @@ class Key(BaseModel):
 
     @property
     def identified(self) -> bool:
-        """Whether the data gave the model's β/Vt and Kce (else :meth:`params` raises)."""
-        return self.model.beta_over_Vt is not None and self.model.Kce is not None
+        """Whether the data gave the model's Kq, β/Vt and Kce (else :meth:`params` raises)."""
+        return self.model.beta_over_Vt is not None and self.model.Kce is not None and self.model.Kq is not None
 
     def value(self, item: str) -> Any:
         return self.quantities[item].value
@@ -143,7 +144,8 @@ def _model_values(ident: Identification) -> dict[str, float | None]:
     g, e = ident.dataset.given, ident.estimates
     known = {**{k: g[k] for k in ("A", "M", "Kamp", "sample_time", "supply_pressure", "i_max")},
              "Kq": e["Kq"].value, "Kpot": e["Kpot"].value, "B": ident.match_B}
-    return {name: round_sig(known[name]) if name in known else None for name in MODEL_UNITS}
+    return {name: round_sig(known[name]) if name in known and np.isfinite(known[name]) else None
+            for name in MODEL_UNITS}
 
 
 def build_key(dataset: Dataset) -> Key:

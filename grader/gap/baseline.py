@@ -36,6 +36,7 @@ from grader.identify import (
     coefficient_match,
     identify,
     match_sampled_poles,
+    not_identifiable,
 )
 from grader.keys import read_key
 from grader.model.effects import NO_EFFECTS
@@ -164,17 +165,20 @@ def _calibrated_kpot(ds: Dataset, notes: list[str]) -> float | None:
 
 def _flow_kq(ds: Dataset, notes: list[str]) -> float | None:
     """Kq [in³/s/mA] from the flow test, or None (fitted to the runs instead, with a note): without one, or with
-    one the identification cannot use (read on one side of the null only, or flat)."""
+    one the identification cannot use (read on one side of the null only, flat, or saturating within one input step
+    of the null)."""
     start = "Kq fitted to the runs (nominal start 0.5 gpm / rated current)"
     if ds.flow_test is None:
         notes.append(f"no flow test: {start}")
         return None
     try:
-        return FlowGainFit(Kamp=ds.given["Kamp"]).fit(ds.flow_test["input"], ds.flow_test["flow"]).Kq_.value
+        kq = FlowGainFit(Kamp=ds.given["Kamp"]).fit(ds.flow_test["input"], ds.flow_test["flow"]).Kq_
     except IdentificationError as exc:
-        reason = str(exc).removeprefix("flow test: ")
-        notes.append(f"flow test {ds.manifest.flow_test} not used ({reason}): {start}")
-        return None
+        kq = not_identifiable("in**3/s/mA", "flow test", str(exc).removeprefix("flow test: "))
+    if kq.status == "ok":
+        return kq.value
+    notes.append(f"flow test {ds.manifest.flow_test} not used ({kq.reason}): {start}")
+    return None
 
 
 def _kpot_from_loop_gain(p: RigParams, kq: float) -> RigParams:

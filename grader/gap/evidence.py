@@ -217,6 +217,8 @@ def loop_gain(ds: Dataset, cand: Candidate, base: RigParams) -> LoopGainInfo | N
         flow = FlowGainFit(Kamp=ds.given["Kamp"]).fit(ds.flow_test["input"], ds.flow_test["flow"]).Kq_
     except (IdentificationError, ValueError, ArithmeticError):
         return None
+    if flow.status != "ok":
+        return None
     runs = base.with_(**{k: v.value for k, v in cand.linear_params.items()})
     runs_kq = cand.linear_params["Kq"]
     flow_kq = build.value(flow.value, "in**3/s/mA", flow.interval)

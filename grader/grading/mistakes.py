@@ -87,6 +87,8 @@ def _flow_unsubtracted(env: Env, item: str) -> float | None:
     v, q = env.kc.dataset.flow_test["input"], env.kc.dataset.flow_test["flow"]
     kamp = env.kc.given["Kamp"]
     fit = FlowGainFit(Kamp=kamp).fit(v, q)
+    if fit.Kq_.status != "ok":
+        return None
     i = kamp * v
     signed = np.sign(i - fit.null_current_.value) * q
     return float(np.polyfit(i[fit.linear_mask_], signed[fit.linear_mask_], 1)[0])

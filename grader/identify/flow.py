@@ -18,7 +18,9 @@ tests Kq's 95 % interval covers the truth 94 % of the time (91 % before both rul
 When fewer than :data:`CORE_MIN` readings on a side come before that point (a valve saturating
 within a volt of its null), no V can be fitted to the linear region alone, and Kq is that clipped
 V's own slope, fitted to every reading (the plateau pins the flow there, the few readings near the
-null the slope).
+null the slope). When no reading but the null's lies clearly below the plateau (a valve saturating
+within one input step of its null), any slope steep enough fits: Kq, the null and the leakage are
+then ``not_identifiable``, with the reason, rather than a number the data do not give.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import OptimizeResult, least_squares
 
 from grader.errors import IdentificationError
-from grader.identify.estimate import Estimate
+from grader.identify.estimate import Estimate, not_identifiable
 
 
 def _fit_v(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float64]) -> OptimizeResult:
@@ -97,12 +99,23 @@ def _linear_region(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[n
     return keep
 
 
+def _slope_seen(d: NDArray[np.float64], q: NDArray[np.float64], fit: OptimizeResult, d_sat: float) -> bool:
+    """Whether a reading other than the null's (the one nearest ``fit``'s null; ``d`` = i − i0 [mA]) lies clearly
+    below the clipped V's plateau: by more than 3 σ of the plateau readings' scatter and 1 % of the plateau."""
+    top = float(fit.x[3] + fit.x[2])
+    plateau = np.abs(d) >= d_sat
+    sd = float(np.std(q[plateau], ddof=1)) if plateau.sum() > 2 else 0.0
+    off_null = np.arange(d.size) != int(np.argmin(np.abs(d)))
+    return bool(np.any(off_null & (q < top - max(3.0 * sd, 0.01 * top))))
+
+
 class FlowGainFit:
     """Fit Kq from amplifier input volts and flow-meter readings [in³/s].
 
     Config: ``Kamp`` [mA/V]. Learned: ``Kq_`` [in³/s/mA], ``leakage_`` [in³/s],
     ``null_current_`` [mA] (Estimates), ``linear_mask_`` (points used). A leakage fitted
-    below 0 is clipped to 0 with a note.
+    below 0 is clipped to 0 with a note. All three are ``not_identifiable`` (NaN, with the
+    reason) when the flow saturates within one input step of the null.
     """
 
     def __init__(self, *, Kamp: float) -> None:
@@ -128,6 +141,8 @@ class FlowGainFit:
         clipped = _fit_clipped(i, q, x0)
         d_sat = _saturation_current(clipped)
         if _early_saturation(i - x0[1], d_sat):
+            if not _slope_seen(i - clipped.x[1], q, clipped, d_sat):
+                return self._unidentified(v.size)
             res, mask = clipped, np.abs(i - clipped.x[1]) < d_sat
             res.x[0] = abs(res.x[0])
             method = "min(|Kq·(i−i0)|, Qs) + leakage fitted to every reading (the flow saturates next to the null)"
@@ -145,4 +160,15 @@ class FlowGainFit:
         self.leakage_ = Estimate(float(res.x[2]), "in**3/s", float(se[2]), "constant internal leakage of the same fit",
                                  note, dof).clipped_below(0.0)
         self.linear_mask_ = mask
+        return self
+
+    def _unidentified(self, n: int) -> FlowGainFit:
+        """Every learned value ``not_identifiable``: the flow saturates within one input step of the null."""
+        reason = ("the flow saturates within one input step of the valve null (every reading but the null's is on "
+                  "the plateau), so any steep enough slope fits; readings in smaller steps round the null would give the slope")
+        method = "min(|Kq·(i−i0)|, Qs) + leakage fitted to every reading"
+        self.Kq_ = not_identifiable("in**3/s/mA", method, reason)
+        self.null_current_ = not_identifiable("mA", "null of the same fit", reason)
+        self.leakage_ = not_identifiable("in**3/s", "constant internal leakage of the same fit", reason)
+        self.linear_mask_ = np.zeros(n, dtype=bool)
         return self

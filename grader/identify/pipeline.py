@@ -140,6 +140,8 @@ def _from_oscillation(dataset: Dataset, run: Run, static: Mapping[str, Estimate]
     g, fb = dataset.given, dataset.manifest.feedback
     kp, volts = run.controller.Kp, fb == "volts"
     Kq, Kpot = static["Kq"], static["Kpot"]
+    if Kq.status != "ok":
+        raise IdentificationError(f"needs Kq, which the flow test does not give: {Kq.reason}")
     a_sat = saturation_amplitude(g, kp, Kpot.value if volts else 1.0)
     first = OscillationFit(a_sat).fit(run.t, run.y, start=command_start(run))
     if not first.usable_:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -22,8 +23,10 @@ from grader.identify import FlowGainFit, FrictionFit
 from grader.keys import build_key, read_key
 from grader.model import zloop
 from grader.model.params import Controller
-from grader.stations import Station
+from grader.stations import Station, reference_dir
 from grader.synth import make_dataset, paper_runs, station_effects
+
+DEFAULT_DATASET = reference_dir() / "datasets" / "default"
 
 
 @pytest.fixture(scope="module")
@@ -118,3 +121,29 @@ def test_run_without_critical_oscillation_keys_as_not_identifiable(stable_run_ri
     assert re.search(r"Kce \*\s*│\s*not identifiable", printed) and "raise Kp until the oscillation grows" in printed
     with pytest.raises(GraderError, match="not identifiable"):
         key.params()
+
+
+def test_flow_test_saturating_within_one_step_keys_kq_as_not_identifiable(tmp_path: Path,
+                                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """The default dataset with a flow test (written here) of a valve clipped at 1 mA, below the test's 2.5 mA step:
+    the key is written with Kq and the leakage not identifiable, the instability run's items saying they need Kq,
+    and the model's Kq null; the diagnosis then fits Kq to the runs, with a note (it used a slope of a third of
+    the truth before)."""
+    from grader.gap.baseline import _flow_kq
+
+    ds = tmp_path / "clipped"
+    shutil.copytree(DEFAULT_DATASET, ds)
+    v = np.arange(-10, 10.01, 0.5)
+    q = np.abs(0.01 * np.clip(5.0 * v, -1.0, 1.0)) + 0.035 + np.random.default_rng(2).normal(0, 0.0005, v.size)
+    (ds / "flow.csv").write_text("input [V],flow [gpm]\n" + "".join(f"{a:g},{b:.6f}\n" for a, b in zip(v, q)))
+    out = tmp_path / "key.json"
+    assert main(["key", str(ds), "-o", str(out)]) == 0
+    assert "within one input step of the valve null" in " ".join(capsys.readouterr().out.split())
+    key = read_key(out)
+    assert key.model.Kq is None and key.model.Kce is None and not key.identified
+    for name in ("Kq", "leakage"):
+        assert key.quantities[name].status == "not_identifiable" and key.quantities[name].value is None
+    assert (key.quantities["Kce"].reason or "").startswith("needs Kq, which the flow test does not give")
+    assert key.quantities["Kpot"].reachable and key.quantities["Fc"].reachable
+    notes: list[str] = []
+    assert _flow_kq(load(ds), notes) is None and "within one input step" in notes[0]

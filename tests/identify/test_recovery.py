@@ -103,6 +103,28 @@ def test_flow_fit_of_a_valve_saturating_next_to_its_null(seed: int) -> None:
     assert "every reading" in fit.Kq_.method and fit.linear_mask_.sum() <= 5
 
 
+@pytest.mark.parametrize("limit", [0.5, 1.0, 2.0])
+@pytest.mark.parametrize("seed", range(3))
+def test_flow_fit_of_a_valve_saturating_within_one_step_gives_no_kq(seed: int, limit: float) -> None:
+    """A current limit below the test's 2.5 mA step (0.5 V at Kamp 5 mA/V) puts every reading but the null's on
+    the plateau: any slope steep enough fits, so Kq, the null and the leakage are not identifiable (the fit used
+    to report a slope near plateau/step, a third of the truth, with an interval that excluded it)."""
+    rng = np.random.default_rng(seed)
+    v, q = _clipped_flow(rng, 0.0385, limit, 0.0, 0.006)
+    fit = FlowGainFit(Kamp=5.0).fit(v, q)
+    for est in (fit.Kq_, fit.null_current_, fit.leakage_):
+        assert est.status == "not_identifiable" and np.isnan(est.value)
+        assert "within one input step" in (est.reason or "")
+    assert not fit.linear_mask_.any()
+
+
+def test_flow_fit_of_a_valve_saturating_after_one_reading_gives_kq() -> None:
+    """A 3 mA limit leaves the ±2.5 mA readings on the slope (clearly below the plateau): Kq is identified."""
+    v, q = _clipped_flow(np.random.default_rng(1), 0.0385, 3.0, 0.0, 0.002)
+    fit = FlowGainFit(Kamp=5.0).fit(v, q)
+    assert fit.Kq_.status == "ok" and fit.Kq_.interval[0] < 0.0385 < fit.Kq_.interval[1]
+
+
 def _clipped_flow(rng: np.random.Generator, kq: float, limit: float, null: float, sd: float) -> tuple[np.ndarray, np.ndarray]:
     """A bypass flow test written here, independently of the simulator: amplifier volts and readings [in³/s] of
     a valve clipped at ``limit`` [mA] with its null at ``null`` [mA], 0.11 in³/s of leakage, noise ``sd``."""
