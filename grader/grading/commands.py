@@ -119,14 +119,26 @@ def _grade(args: argparse.Namespace) -> int:
 def _warn_duplicates(results: list[SubmissionResult]) -> None:
     """Say which submissions grades.csv does not use because their students handed in later ones."""
     from grader.exports.bundle import source_times
-    from grader.exports.canvas import superseded
+    from grader.exports.canvas import latest, superseded
 
-    gone = superseded(results, source_times(results))
+    times = source_times(results)
+    gone = superseded(results, times)
     if gone:
         print(f"warning: {len(gone)} submission(s) share students with a later one; grades.csv grades each "
               "student's latest submission (by file time), report.json names it in 'superseded_by':", file=sys.stderr)
+        chosen, key = latest(results, times)
+        by_id = {r.submission_id: r for r in results}
         for sid, newer in sorted(gone.items()):
-            print(f"  {sid} -> {newer}", file=sys.stderr)
+            to: dict[str, list[str]] = {}
+            for s in by_id[sid].students:
+                to.setdefault(chosen[key(s)].submission_id, []).append(s.name)
+            kept = to.pop(sid, [])
+            if kept or len(to) > 1:  # only some of its students moved, or they moved to different submissions
+                moves = "; ".join(f"{', '.join(names)} -> {other}" for other, names in sorted(to.items()))
+                still = f"; {', '.join(kept)} still graded on it" if kept else ""
+                print(f"  {sid}: {moves}{still}", file=sys.stderr)
+            else:
+                print(f"  {sid} -> {newer}", file=sys.stderr)
 
 
 def _check(args: argparse.Namespace) -> int:

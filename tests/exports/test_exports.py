@@ -5,7 +5,9 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import zipfile
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -20,6 +22,7 @@ from grader.exports.feedback_md import feedback_md
 from grader.exports.gradebook_xlsx import gradebook, item_statistics
 from grader.exports.gradescope import package_zip, results_json
 from grader.exports.report_json import report_json
+from grader.grading.commands import _warn_duplicates
 from grader.grading.results import ItemResult, Student, SubmissionResult
 from grader.grading.rubric import load_rubric
 
@@ -164,3 +167,20 @@ def test_gradescope_verb_paths(tmp_path: Path, files: list[str], score_zero: boo
     assert main(["gradescope", "--submission-dir", str(sub), "--results", str(out)]) == 0
     data = json.loads(out.read_text())
     assert (data["score"] == 0) is score_zero and message in data["output"]
+
+
+def test_the_warning_says_which_students_a_partly_superseded_submission_keeps(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A later submission listing only Ada replaces g-01 for her alone: the warning says Alan is still graded on
+    g-01 (it said "g-01 -> g-02", as if the whole group had moved). A whole group moving keeps the short form."""
+    first, later = tmp_path / "g.json", tmp_path / "h.json"
+    for f, t in ((first, 1_000_000), (later, 2_000_000)):
+        f.write_text("{}")
+        os.utime(f, (t, t))
+    old = replace(GOOD, source=str(first))
+    ada = SubmissionResult("g-02", str(later), GOOD.students[:1], ITEMS)
+    _warn_duplicates([old, ada])
+    err = " ".join(capsys.readouterr().err.split())
+    assert "g-01: Ada Lovelace -> g-02; Alan Turing still graded on it" in err and "g-01 -> g-02" not in err
+    _warn_duplicates([old, replace(ada, students=GOOD.students)])
+    assert "g-01 -> g-02" in " ".join(capsys.readouterr().err.split())
