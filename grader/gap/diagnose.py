@@ -28,7 +28,8 @@ from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.objective import RunObjective, objective
 from grader.gap.pairs import NONE_GAP, Second, beyond_none, fit_nrmse, pick_second, replay_drops, scored_of
-from grader.gap.runs import GapRun, check_gains, current_demand, cut_note, prepare_runs, start_offset_note
+from grader.gap.runs import (GapRun, check_gains, current_demand, cut_note, gain_notes, prepare_runs,
+                             start_offset_note)
 from grader.gap.schema import Candidate as SchemaCandidate
 from grader.gap.schema import Diagnosis, ReplayInfo, Verdict
 from grader.gap.search import SearchResult, search
@@ -257,7 +258,7 @@ def _notes(ds: Dataset, runs: Sequence[GapRun], quant: quant_mod.Quantization | 
         out.append(quant.text())
     if implied_kfb is None:
         out.append("no u column: the manifest's gains could not be checked against the recorded controller output")
-    return out
+    return out + gain_notes(list(runs), implied_kfb, ds.given["sample_time"])
 
 
 def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: Sequence[str] | None = None,

@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import convolve1d
+from scipy.optimize import least_squares
 from scipy.signal import savgol_coeffs
 
 from grader.datasets import Dataset, Run
@@ -194,15 +195,81 @@ def _gain_fit(run: GapRun, T: float, y: Array) -> tuple[float, float] | None:
     return k, float(np.mean(np.abs(u - k * b)))
 
 
-def controller_gain(run: GapRun, T: float) -> float | None:
-    """The k_fb the recorded u implies (:func:`implied_feedback_gain`) from the reading the controller saw. Where
-    the reading as compared still holds glitches (too many to mend: compared as recorded), that is the reading as
-    recorded or with them mended, whichever u follows more closely: a logger's glitch is a reading the controller
-    never saw (a PI's integral of four 5 in spikes took the gains to 1.43 times the manifest's), a sensor's fault
-    one it saw."""
+def _seen(run: GapRun, T: float) -> tuple[Array, float] | None:
+    """The reading the controller saw and the k_fb the recorded u implies from it (:func:`_gain_fit`), or None
+    without u. Where the reading as compared still holds glitches (too many to mend: compared as recorded), that is
+    the reading as recorded or with them mended, whichever u follows more closely: a logger's glitch is a reading
+    the controller never saw (a PI's integral of four 5 in spikes took the gains to 1.43 times the manifest's), a
+    sensor's fault one it saw."""
     found = glitches.search(run.y)
-    fits = [f for y in ([run.y, found.mended] if found.found else [run.y]) if (f := _gain_fit(run, T, y))]
-    return min(fits, key=lambda f: f[1])[0] if fits else None
+    fits = [(y, f) for y in ([run.y, found.mended] if found.found else [run.y]) if (f := _gain_fit(run, T, y))]
+    if not fits:
+        return None
+    y, (k, _) = min(fits, key=lambda yf: yf[1][1])
+    return y, k
+
+
+def controller_gain(run: GapRun, T: float) -> float | None:
+    """The k_fb the recorded u implies (:func:`implied_feedback_gain`) from the reading the controller saw
+    (:func:`_seen`)."""
+    seen = _seen(run, T)
+    return None if seen is None else seen[1]
+
+
+#: The controller's terms, in the order of :func:`control_law`'s.
+TERMS = ("Kp", "Ki", "Kd")
+#: A term whose gain u implies differs from the manifest's by more than GAIN_TOLERANCE (or is not in the manifest)
+#: is noted where the difference moves u by more than this share of u's RMS.
+TERM_SHARE = 0.05
+
+
+def term_gains(run: GapRun, T: float, k_fb: float) -> tuple[dict[str, float], dict[str, float]] | None:
+    """(the gains Kp, Ki, Kd that reproduce the recorded u from the reading the controller saw with feedback gain
+    ``k_fb``, and for each the RMS by which its difference from the manifest's moves u, as a share of u's RMS), or
+    None without u or 20 rows within the DAC's range. A robust least-squares fit (soft-L1 loss: a few rows the
+    controller never saw do not set it) started from the manifest's gains; a gain the manifest leaves 0 is fitted too."""
+    seen = _seen(run, T)
+    if seen is None or run.u is None:
+        return None
+    e = k_fb * (run.r - seen[0])
+    cols = np.column_stack([e, T * np.cumsum(e), np.diff(e, prepend=0.0) / T])
+    use = np.abs(run.u) < 0.95 * DAC_LIMIT
+    if use.sum() < 20:
+        return None
+    a, u = cols[use], run.u[use]
+    size = np.sqrt(np.mean(a**2, axis=0))
+    size[size == 0] = 1.0
+    rms = float(np.sqrt(np.mean(u**2))) or 1.0
+    c = np.array([run.controller.Kp, run.controller.Ki, run.controller.Kd])
+    fit = least_squares(lambda x: (a / size) @ x - u, c * size, loss="soft_l1", f_scale=0.01 * rms)
+    g = fit.x / size
+    moved = np.sqrt(np.mean((a * (g - c)) ** 2, axis=0)) / rms
+    return dict(zip(TERMS, map(float, g))), dict(zip(TERMS, map(float, moved)))
+
+
+def _implied_text(gains: dict[str, float]) -> str:
+    return ", ".join(f"{t} ≈ {g:.3g}" for t, g in gains.items())
+
+
+def gain_notes(runs: list[GapRun], k_fb: float | None, T: float) -> list[str]:
+    """A note for each run whose recorded u implies a term's gain other than the manifest's (:data:`TERM_SHARE`),
+    where the gains as a whole passed :func:`check_gains` (a derivative gain wrong by a third, say, moves the
+    median slope of u on the law little): the diagnosis simulates the manifest's gains."""
+    out = []
+    for run in runs if k_fb is not None else []:
+        terms = term_gains(run, T, k_fb) if k_fb is not None else None
+        if terms is None:
+            continue
+        gains, moved = terms
+        c = dict(zip(TERMS, (run.controller.Kp, run.controller.Ki, run.controller.Kd)))
+        off = [t for t in TERMS if moved[t] > TERM_SHARE and (c[t] == 0 or abs(gains[t] / c[t] - 1) > GAIN_TOLERANCE)]
+        if off:
+            given = ", ".join(f"{t} = {c[t]:g}" for t in off)
+            out.append(f"run {run.name}: the manifest gives {given}, but the recorded controller output u implies "
+                       f"{_implied_text({t: gains[t] for t in off})}; the diagnosis simulates the manifest's gains, "
+                       "so correct them if u is right (a filtered derivative, or an integrator that stops at the "
+                       "DAC's limit, also shows here)")
+    return out
 
 
 def check_gains(runs: list[GapRun], k_fb: float | None, T: float) -> float | None:
@@ -218,9 +285,11 @@ def check_gains(runs: list[GapRun], k_fb: float | None, T: float) -> float | Non
         if v is not None and (v <= 0 or abs(v / ref - 1) > GAIN_TOLERANCE):
             c = run.controller
             factor = v / ref
+            terms = term_gains(run, T, ref)
+            each = "" if terms is None else f"; term by term, {_implied_text(terms[0])}"
             raise DiagnosisError(
                 f"run {run.name}: the manifest gives Kp = {c.Kp:g} (Ki = {c.Ki:g}, Kd = {c.Kd:g}) but the recorded "
-                f"controller output u implies gains {factor:.3g} times those (Kp ≈ {c.Kp * factor:.3g}); "
+                f"controller output u implies gains {factor:.3g} times those (Kp ≈ {c.Kp * factor:.3g}){each}; "
                 "correct the run's gains in the manifest"
             )
     return ref

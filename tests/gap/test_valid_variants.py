@@ -18,8 +18,9 @@ from grader.datasets import ControllerSpec, Run, RunSpec, load
 from grader.datasets.sampling import sample_times
 from grader.errors import DatasetError, DiagnosisError
 from grader.gap.candidates import SATURATION, make_candidates
-from grader.gap.runs import (MAX_COMPARED, check_gains, control_law, cut_note, implied_feedback_gain, prepare_runs,
-                             start_offset_note)
+from grader.gap.runs import (MAX_COMPARED, GapRun, check_gains, control_law, cut_note, gain_notes,
+                             implied_feedback_gain, prepare_runs, start_offset_note)
+from grader.model.params import Controller
 from grader.model.rig_setup import DAC_LIMIT
 from grader.stations import Station
 from grader.synth import make_dataset
@@ -297,3 +298,49 @@ def test_a_logger_glitch_is_mended_with_a_note_and_the_read_offs_are_the_clean_r
         assert r["measured"] == pytest.approx(overshoot[r["quantity"], r["run"]], rel=0.05, abs=1e-4)
     assert d["noise"]["sigma"]["value"] == pytest.approx(clean["noise"]["sigma"]["value"], rel=0.05)
     assert d["verdict"]["effect"] == clean["verdict"]["effect"]
+
+
+def _law_u(run: GapRun, c: Controller, k: float, T: float) -> np.ndarray:
+    """u [V] a controller of gains ``c`` gives from the run's reading, with feedback gain ``k``."""
+    return np.clip(k * control_law(c, run.r - run.y, T), -DAC_LIMIT, DAC_LIMIT)
+
+
+def test_a_term_gain_u_contradicts_is_named_where_the_gains_as_a_whole_pass(make: MakeDataset) -> None:
+    """A derivative gain 30 % above the manifest's (its term half the size of the proportional one) moves the
+    median slope of u on the law by less than the 10 % the whole-gain check allows; the run used to pass silently.
+    Now a note names Kd and the gain u implies; the manifest's own gains, recorded exactly, give no note."""
+    ds = load(make("variants_linear"))
+    T = ds.given["sample_time"]
+    runs = prepare_runs(ds, T)[1]
+    k = check_gains(runs, None, T)
+    assert k is not None and gain_notes(runs, k, T) == []  # P, PI and ramp runs as recorded
+    j = next(i for i, r in enumerate(runs) if r.kind == "step")
+    run = runs[j]
+    e = k * (run.r - run.y)
+    kd = 0.5 * run.controller.Kp * float(np.std(e) / np.std(np.diff(e, prepend=0.0) / T))
+    pd = replace(run.controller, Kd=kd)
+    right = replace(run, controller=pd, u=_law_u(run, pd, k, T))
+    wrong = replace(right, u=_law_u(run, replace(pd, Kd=1.3 * kd), k, T))
+    assert check_gains([*runs[:j], right, *runs[j + 1:]], None, T) == pytest.approx(k, rel=1e-6)
+    assert gain_notes([right], k, T) == []
+    assert check_gains([*runs[:j], wrong, *runs[j + 1:]], None, T) == pytest.approx(k, rel=1e-6)  # passes as a whole
+    (note,) = gain_notes([wrong], k, T)
+    assert f"run {run.name}: the manifest gives Kd = {kd:g}" in note and f"Kd ≈ {1.3 * kd:.3g}" in note
+    assert "Kp" not in note  # the right gains are not blamed
+
+
+def test_a_refused_runs_message_names_the_term_that_is_off(make: MakeDataset) -> None:
+    """A PI run whose u came from twice the manifest's Ki: the refusal gives the gains term by term, so the one
+    line says Ki is off (it gave only Kp ≈ a value, blaming Kp)."""
+    ds = load(make("variants_linear"))
+    T = ds.given["sample_time"]
+    runs = prepare_runs(ds, T)[1]
+    k = check_gains(runs, None, T)
+    assert k is not None
+    j = next(i for i, r in enumerate(runs) if r.controller.Ki > 0)
+    run = runs[j]
+    c = run.controller
+    bad = replace(run, u=_law_u(run, replace(c, Ki=2.0 * c.Ki), k, T))
+    with pytest.raises(DiagnosisError, match="term by term") as exc:
+        check_gains([*runs[:j], bad, *runs[j + 1:]], None, T)
+    assert f"Ki ≈ {2.0 * c.Ki:.3g}" in str(exc.value) and f"Kp ≈ {c.Kp:.3g}" in str(exc.value)
