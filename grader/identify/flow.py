@@ -164,8 +164,8 @@ class FlowGainFit:
 
     def _unidentified(self, n: int) -> FlowGainFit:
         """Every learned value ``not_identifiable``: the flow saturates within one input step of the null."""
-        reason = ("the flow saturates within one input step of the valve null (every reading but the null's is on "
-                  "the plateau), so any steep enough slope fits; readings in smaller steps round the null would give the slope")
+        reason = ("the flow saturates within one input step of the valve null: every reading but the null's is on "
+                  "the plateau, so any steep enough slope fits; readings in smaller steps round the null would give it")
         method = "min(|Kq·(i−i0)|, Qs) + leakage fitted to every reading"
         self.Kq_ = not_identifiable("in**3/s/mA", method, reason)
         self.null_current_ = not_identifiable("mA", "null of the same fit", reason)
