@@ -9,6 +9,13 @@ below :data:`QUIET` q). Then the diagnosis names ``sensor_quantization``, estima
 of a ±10 V board from q and the pot gain Kpot (LSB = q·Kpot = 20 V / 2**bits) and states what
 it does to the steady-state error: with a P loop the position may settle anywhere in the
 ±q/2 band round the set-point that reads as zero error.
+
+A lattice whose step is a power of ten in a length unit (0.0001 in, 0.001 mm), with the readings
+on it, is the precision the file was printed with, not an ADC (a ±10 V board's step through a pot
+is a decimal step by chance only). Where the reading noise dithers it (white-noise RMS at least
+:data:`DITHER` q: the quantiser's mean is then linear to within 1 %, so averaging the readings
+resolves errors below q), it matters to nothing and stays a note; printed coarser than the noise,
+the readings students read are quantised all the same, and the rules above apply.
 """
 
 from __future__ import annotations
@@ -27,6 +34,10 @@ QUIET = 0.3
 LIMIT_CYCLE_COUNTS = (1, 4)  # peak-to-peak readings, in counts, of a quantisation limit cycle
 TAIL = 0.3  # [s] end of a step run examined for a limit cycle
 ADC_SPAN = 20.0  # [V] a ±10 V board
+#: White-noise RMS, in steps q, from which the noise dithers a lattice: exp(−2π²·DITHER²) < 1 % (Widrow's bound).
+DITHER = 0.5
+#: Inches to the length units a file may be printed in (in, mm, cm, m), and the tolerance of a decimal step.
+PRINT_UNITS, DECIMAL_TOL = (1.0, 25.4, 2.54, 0.0254), 0.005
 
 
 @dataclass(frozen=True)
@@ -39,9 +50,13 @@ class Quantization:
     bits: float
     limit_cycle: bool
     readoff_share: float = float("nan")
+    #: the lattice is the file's print precision, finer than the reading noise (module docstring)
+    printed: bool = False
 
     @property
     def matters(self) -> bool:
+        if self.printed:
+            return False
         return self.share >= STEP_SHARE or self.readoff_share >= STEP_SHARE or self.limit_cycle
 
     def text(self) -> str:
@@ -50,6 +65,9 @@ class Quantization:
                    if self.readoff_share == self.readoff_share else "")
         core = (f"the readings are quantised in steps of {self.step:.3g} in ({100 * self.share:.2g} % of the step "
                 f"command{readoff}; about a {self.bits:.0f}-bit ±10 V ADC)")
+        if self.printed:
+            return (f"the readings are printed in steps of {self.step:.3g} in, finer than their noise: the file's print "
+                    "precision, not an ADC, and part of the noise floor")
         if not self.matters:
             return f"{core}: part of the noise floor"
         cycle = "; the step runs end in a limit cycle of a few counts" if self.limit_cycle else ""
@@ -72,6 +90,16 @@ def _readoff_error(runs: Sequence[GapRun], q: float, sigma: float) -> float:
     return min(clear) if clear else float("nan")
 
 
+def _printed(runs: Sequence[GapRun], q: float, sigma: float) -> bool:
+    """Whether the lattice of step ``q`` [in] is a print precision the noise dithers (module docstring): q a power
+    of ten in one of :data:`PRINT_UNITS`, 95 % of the readings on multiples of it, and the white noise (the RMS
+    ``sigma`` less the lattice's own q/√12) at least :data:`DITHER` q."""
+    decimal = any(abs(q * f / 10.0 ** round(math.log10(q * f)) - 1.0) < DECIMAL_TOL for f in PRINT_UNITS)
+    y = np.concatenate([r.y for r in runs]) / q
+    on = float(np.mean(np.abs(y - np.round(y)) < 0.02))
+    return decimal and on >= 0.95 and sigma**2 - q**2 / 12.0 >= (DITHER * q) ** 2
+
+
 def assess(runs: Sequence[GapRun], noise: Noise, kpot: float) -> Quantization | None:
     """The ADC's effect, if the readings are quantised (see module docstring); ``kpot`` [V/in]."""
     q = noise.adc_step
@@ -82,4 +110,4 @@ def assess(runs: Sequence[GapRun], noise: Noise, kpot: float) -> Quantization | 
     bits = math.log2(ADC_SPAN / (q * kpot)) if q * kpot > 0 else float("nan")
     white = noise.sigma
     return Quantization(q, q / command, bits, any(_limit_cycle(r, q, white) for r in steps),
-                        q / _readoff_error(runs, q, white))
+                        q / _readoff_error(runs, q, white), _printed(runs, q, white))
