@@ -21,10 +21,11 @@ if TYPE_CHECKING:
 Array = NDArray[np.float64]
 
 
-def _printed_resolution(t: Array) -> float:
-    """The resolution [s] the time stamps were printed with: the median over rows of the largest power of ten from
-    1 s down to 1 ns of which a stamp is a multiple (a logger writing ``%.3f`` rounds a 1.44 ms grid to whole
-    milliseconds; a stamp that happens to end in zeros, as 1.000, shows a coarser one than the file's)."""
+def printed_resolution(t: Array) -> float:
+    """The resolution [s, or the column's internal unit] the values were printed with: the median over rows of the
+    largest power of ten from 1 down to 1e-9 of which a value is a multiple (a logger writing ``%.3f`` rounds a
+    1.44 ms grid to whole milliseconds; a stamp that happens to end in zeros, as 1.000, shows a coarser one than
+    the file's)."""
     res = np.zeros(t.size)
     for d in range(9, -1, -1):
         q = 10.0**-d
@@ -49,7 +50,7 @@ def check_rows(run: Run, T: float) -> None:
     t = run.t
     if t.size < 2:
         return
-    dt, res = np.diff(t), _printed_resolution(t)
+    dt, res = np.diff(t), printed_resolution(t)
     jumps = np.flatnonzero((dt > 1.5 * T + res) | (dt < 0.5 * T - res))
     if jumps.size:
         raise _off_grid(run, T, int(jumps[0]) + 1)
@@ -67,7 +68,7 @@ def sample_times(run: Run, T: float) -> Array:
     if abs(float(np.median(dt)) - T) <= 0.01 * T and np.max(np.abs(dt - T)) <= 0.05 * T:
         return t
     k = np.arange(t.size)
-    off, tol = t - k * T, min(0.05 * T + 0.5 * _printed_resolution(t), 0.499 * T)
+    off, tol = t - k * T, min(0.05 * T + 0.5 * printed_resolution(t), 0.499 * T)
     lo, hi = np.maximum.accumulate(off - tol), np.minimum.accumulate(off + tol)  # the offsets rows 0..k allow
     broken = np.flatnonzero(lo > hi)
     if broken.size == 0:

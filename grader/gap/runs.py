@@ -28,7 +28,7 @@ from scipy.optimize import least_squares
 from scipy.signal import savgol_coeffs
 
 from grader.datasets import Dataset, Run
-from grader.datasets.sampling import sample_times
+from grader.datasets.sampling import printed_resolution, sample_times
 from grader.errors import DiagnosisError
 from grader.gap import glitches
 from grader.model.params import Controller
@@ -219,15 +219,18 @@ def controller_gain(run: GapRun, T: float) -> float | None:
 #: The controller's terms, in the order of :func:`control_law`'s.
 TERMS = ("Kp", "Ki", "Kd")
 #: A term whose gain u implies differs from the manifest's by more than GAIN_TOLERANCE (or is not in the manifest)
-#: is noted where the difference moves u by more than this share of u's RMS.
+#: is noted where the difference moves u by more than TERM_SHARE of u's RMS and by at least the resolution u was
+#: printed with (a u printed to 0.1 V lets a derivative's gain wander by up to half a step's RMS: rounding, not a
+#: wrong gain).
 TERM_SHARE = 0.05
 
 
-def term_gains(run: GapRun, T: float, k_fb: float) -> tuple[dict[str, float], dict[str, float]] | None:
+def term_gains(run: GapRun, T: float, k_fb: float) -> tuple[dict[str, float], dict[str, float], dict[str, float]] | None:
     """(the gains Kp, Ki, Kd that reproduce the recorded u from the reading the controller saw with feedback gain
-    ``k_fb``, and for each the RMS by which its difference from the manifest's moves u, as a share of u's RMS), or
-    None without u or 20 rows within the DAC's range. A robust least-squares fit (soft-L1 loss: a few rows the
-    controller never saw do not set it) started from the manifest's gains; a gain the manifest leaves 0 is fitted too."""
+    ``k_fb``; for each, the RMS by which its difference from the manifest's moves u, as a share of u's RMS, and in
+    steps of the resolution u was printed with), or None without u or 20 rows within the DAC's range. A robust
+    least-squares fit (soft-L1 loss: a few rows the controller never saw do not set it) started from the manifest's
+    gains; a gain the manifest leaves 0 is fitted too."""
     seen = _seen(run, T)
     if seen is None or run.u is None:
         return None
@@ -243,8 +246,10 @@ def term_gains(run: GapRun, T: float, k_fb: float) -> tuple[dict[str, float], di
     c = np.array([run.controller.Kp, run.controller.Ki, run.controller.Kd])
     fit = least_squares(lambda x: (a / size) @ x - u, c * size, loss="soft_l1", f_scale=0.01 * rms)
     g = fit.x / size
-    moved = np.sqrt(np.mean((a * (g - c)) ** 2, axis=0)) / rms
-    return dict(zip(TERMS, map(float, g))), dict(zip(TERMS, map(float, moved)))
+    moved = np.sqrt(np.mean((a * (g - c)) ** 2, axis=0))
+    steps = moved / max(printed_resolution(run.u), 1e-12)
+    return (dict(zip(TERMS, map(float, g))), dict(zip(TERMS, map(float, moved / rms))),
+            dict(zip(TERMS, map(float, steps))))
 
 
 def _implied_text(gains: dict[str, float]) -> str:
@@ -255,14 +260,17 @@ def gain_notes(runs: list[GapRun], k_fb: float | None, T: float) -> list[str]:
     """A note for each run whose recorded u implies a term's gain other than the manifest's (:data:`TERM_SHARE`),
     where the gains as a whole passed :func:`check_gains` (a derivative gain wrong by a third, say, moves the
     median slope of u on the law little): the diagnosis simulates the manifest's gains."""
-    out = []
-    for run in runs if k_fb is not None else []:
-        terms = term_gains(run, T, k_fb) if k_fb is not None else None
+    out: list[str] = []
+    if k_fb is None:
+        return out
+    for run in runs:
+        terms = term_gains(run, T, k_fb)
         if terms is None:
             continue
-        gains, moved = terms
+        gains, moved, steps = terms
         c = dict(zip(TERMS, (run.controller.Kp, run.controller.Ki, run.controller.Kd)))
-        off = [t for t in TERMS if moved[t] > TERM_SHARE and (c[t] == 0 or abs(gains[t] / c[t] - 1) > GAIN_TOLERANCE)]
+        off = [t for t in TERMS if moved[t] > TERM_SHARE and steps[t] >= 1.0
+               and (c[t] == 0 or abs(gains[t] / c[t] - 1) > GAIN_TOLERANCE)]
         if off:
             given = ", ".join(f"{t} = {c[t]:g}" for t in off)
             out.append(f"run {run.name}: the manifest gives {given}, but the recorded controller output u implies "
