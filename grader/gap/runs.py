@@ -244,7 +244,8 @@ def term_gains(run: GapRun, T: float, k_fb: float) -> tuple[dict[str, float], di
     size[size == 0] = 1.0
     rms = float(np.sqrt(np.mean(u**2))) or 1.0
     c = np.array([run.controller.Kp, run.controller.Ki, run.controller.Kd])
-    fit = least_squares(lambda x: (a / size) @ x - u, c * size, loss="soft_l1", f_scale=0.01 * rms)
+    scaled = a / size  # columns of unit RMS: the fit's steps are alike in every coordinate
+    fit = least_squares(lambda x: scaled @ x - u, c * size, loss="soft_l1", f_scale=0.01 * rms)
     g = fit.x / size
     moved = np.sqrt(np.mean((a * (g - c)) ** 2, axis=0))
     steps = moved / max(printed_resolution(run.u), 1e-12)
