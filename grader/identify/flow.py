@@ -75,22 +75,33 @@ def _core(d: NDArray[np.float64], d_sat: float) -> NDArray[np.bool_]:
     return keep
 
 
+def _meter_noise(i: NDArray[np.float64], q: NDArray[np.float64]) -> float:
+    """RMS [in³/s] of the meter's noise from every reading: the median absolute second difference of the readings
+    in current order, over 0.6745·√6 (a straight run of readings has none; the few at the null and the clip do not
+    move the median). Evenly spaced inputs assumed, as the procedure takes them."""
+    d2 = np.diff(q[np.argsort(i)], 2)
+    return float(np.median(np.abs(d2)) / (0.6745 * np.sqrt(6.0))) if d2.size else 0.0
+
+
 def _linear_region(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float64], d_sat: float,
                    inside: NDArray[np.bool_]) -> NDArray[np.bool_]:
     """Points on the V: start from the core (:func:`_core`, cut short of ``d_sat`` [mA]) and grow each side
     outward, among the points ``inside`` (short of where the clipped V saturates), until a point and the next one
     out both leave the fitted V on the same side by more than 4 σ or 1 % (saturation begins there, and it
-    persists). A single reading off the V is noise and stays in: stopping at it ends the region where the
-    noise happens to pull against the slope. The outermost reading, with none beyond to tell, stays out when
-    it is off the V."""
+    persists). σ is the larger of the core fit's residual RMS and the meter noise of every reading
+    (:func:`_meter_noise`): a core of five readings (2 V steps) leaves 2 degrees of freedom, whose RMS came out at a
+    twentieth of the noise and stopped the region at unsaturated readings. A single reading off the V is noise and
+    stays in: stopping at it ends the region where the noise happens to pull against the slope. The outermost
+    reading, with none beyond to tell, stays out when it is off the V."""
     d = i - x0[1]
     keep = _core(d, d_sat)
+    meter = _meter_noise(i, q)
     for side in (1.0, -1.0):
         outer = np.flatnonzero((np.sign(d) == side) & ~keep & inside)
         order = outer[np.argsort(np.abs(d[outer]))]
         for n, k in enumerate(order):
             fit = _fit_v(i[keep], q[keep], x0)
-            sd = float(np.std(fit.fun, ddof=3)) if keep.sum() > 3 else 0.0
+            sd = max(float(np.std(fit.fun, ddof=3)) if keep.sum() > 3 else 0.0, meter)
             pred = np.abs(fit.x[0] * (i[order[n:n + 2]] - fit.x[1])) + fit.x[2]
             off = (q[order[n:n + 2]] - pred) / np.maximum(4.0 * sd, 0.01 * pred)
             if np.all(np.abs(off) > 1) and off[0] * off[-1] > 0:

@@ -125,10 +125,12 @@ def test_flow_fit_of_a_valve_saturating_after_one_reading_gives_kq() -> None:
     assert fit.Kq_.status == "ok" and fit.Kq_.interval[0] < 0.0385 < fit.Kq_.interval[1]
 
 
-def _clipped_flow(rng: np.random.Generator, kq: float, limit: float, null: float, sd: float) -> tuple[np.ndarray, np.ndarray]:
-    """A bypass flow test written here, independently of the simulator: amplifier volts and readings [in³/s] of
-    a valve clipped at ``limit`` [mA] with its null at ``null`` [mA], 0.11 in³/s of leakage, noise ``sd``."""
-    v = np.arange(-10, 10.01, 0.5)
+def _clipped_flow(rng: np.random.Generator, kq: float, limit: float, null: float, sd: float,
+                  step: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """A bypass flow test written here, independently of the simulator: amplifier volts (``step`` apart) and
+    readings [in³/s] of a valve clipped at ``limit`` [mA] with its null at ``null`` [mA], 0.11 in³/s of leakage,
+    noise ``sd``."""
+    v = np.arange(-10, 10.01, step)
     q = np.abs(kq * np.clip(5.0 * v - null, -limit, limit)) + 0.11 + rng.normal(0, sd, v.size)
     return v, np.abs(q)
 
@@ -194,3 +196,19 @@ def test_readings_too_large_to_fit_are_refused_not_a_hang_or_a_traceback() -> No
     y = 0.2 + 0.01 * np.exp(0.8 * t) * np.sin(150 * t + 0.3)
     with pytest.raises(IdentificationError, match="too large to fit an oscillation"):
         OscillationFit().fit(t, 1e160 * y)
+
+
+def test_flow_fit_interval_covers_kq_with_coarse_input_steps() -> None:
+    """1 and 2 V steps (11 to 21 readings) and meter noise up to 0.02 in³/s: Kq's 95 % interval covers the truth
+    92–98 % of the time. The core of a 2 V test holds five readings; its fit's residual RMS, on 2 degrees of
+    freedom, once came out at a twentieth of the meter noise and stopped the region at unsaturated readings
+    (coverage 91.7 %, and an independent simulator's test 2 % off); the meter noise of every reading now bounds it."""
+    rng = np.random.default_rng(7)
+    covered = []
+    for _ in range(300):
+        kq = rng.uniform(0.02, 0.06)
+        v, q = _clipped_flow(rng, kq, rng.uniform(30.0, 48.0), rng.uniform(-1.0, 1.0),
+                             rng.choice([0.006, 0.012, 0.02]), step=rng.choice([1.0, 2.0]))
+        fit = FlowGainFit(Kamp=5.0).fit(v, q)
+        covered.append(fit.Kq_.interval[0] < kq < fit.Kq_.interval[1])
+    assert 0.92 <= np.mean(covered) <= 0.98
