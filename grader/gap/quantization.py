@@ -36,8 +36,10 @@ TAIL = 0.3  # [s] end of a step run examined for a limit cycle
 ADC_SPAN = 20.0  # [V] a ±10 V board
 #: White-noise RMS, in steps q, from which the noise dithers a lattice: exp(−2π²·DITHER²) < 1 % (Widrow's bound).
 DITHER = 0.5
-#: Inches to the length units a file may be printed in (in, mm, cm, m), and the tolerance of a decimal step.
-PRINT_UNITS, DECIMAL_TOL = (1.0, 25.4, 2.54, 0.0254), 0.005
+#: Inches to the length units a file may be printed in (in, mm, cm, m), and the tolerance of a decimal step (a
+#: printed one is exact; the lattice step is read to 1e-9 in); a step within WHOLE_BITS of a whole number of bits of
+#: a ±10 V board through the calibrated Kpot is an ADC's, decimal or not.
+PRINT_UNITS, DECIMAL_TOL, WHOLE_BITS = (1.0, 25.4, 2.54, 0.0254), 1e-3, 0.01
 
 
 @dataclass(frozen=True)
@@ -90,14 +92,17 @@ def _readoff_error(runs: Sequence[GapRun], q: float, sigma: float) -> float:
     return min(clear) if clear else float("nan")
 
 
-def _printed(runs: Sequence[GapRun], q: float, sigma: float) -> bool:
+def _printed(runs: Sequence[GapRun], q: float, sigma: float, bits: float) -> bool:
     """Whether the lattice of step ``q`` [in] is a print precision the noise dithers (module docstring): q a power
-    of ten in one of :data:`PRINT_UNITS`, 95 % of the readings on multiples of it, and the white noise (the RMS
-    ``sigma`` less the lattice's own q/√12) at least :data:`DITHER` q."""
+    of ten in one of :data:`PRINT_UNITS` and not a whole number of ``bits`` (:data:`WHOLE_BITS`), 95 % of the
+    readings on multiples of it, and the white noise (the RMS ``sigma`` less the lattice's own q/√12) at least
+    :data:`DITHER` q."""
     decimal = any(abs(q * f / 10.0 ** round(math.log10(q * f)) - 1.0) < DECIMAL_TOL for f in PRINT_UNITS)
+    if not decimal or (math.isfinite(bits) and abs(bits - round(bits)) < WHOLE_BITS):
+        return False
     y = np.concatenate([r.y for r in runs]) / q
     on = float(np.mean(np.abs(y - np.round(y)) < 0.02))
-    return decimal and on >= 0.95 and sigma**2 - q**2 / 12.0 >= (DITHER * q) ** 2
+    return on >= 0.95 and sigma**2 - q**2 / 12.0 >= (DITHER * q) ** 2
 
 
 def assess(runs: Sequence[GapRun], noise: Noise, kpot: float) -> Quantization | None:
@@ -110,4 +115,4 @@ def assess(runs: Sequence[GapRun], noise: Noise, kpot: float) -> Quantization | 
     bits = math.log2(ADC_SPAN / (q * kpot)) if q * kpot > 0 else float("nan")
     white = noise.sigma
     return Quantization(q, q / command, bits, any(_limit_cycle(r, q, white) for r in steps),
-                        q / _readoff_error(runs, q, white), _printed(runs, q, white))
+                        q / _readoff_error(runs, q, white), _printed(runs, q, white, bits))

@@ -248,13 +248,22 @@ def term_gains(run: GapRun, T: float, k_fb: float) -> tuple[dict[str, float], di
     fit = least_squares(lambda x: scaled @ x - u, c * size, loss="soft_l1", f_scale=0.01 * rms)
     g = fit.x / size
     moved = np.sqrt(np.mean((a * (g - c)) ** 2, axis=0))
-    steps = moved / max(printed_resolution(run.u), 1e-12)
+    printed = u[u != 0]  # rows at rest print 0 in any format, and would read as whole volts
+    steps = moved / max(printed_resolution(printed) if printed.size else 0.0, 1e-12)
     return (dict(zip(TERMS, map(float, g))), dict(zip(TERMS, map(float, moved / rms))),
             dict(zip(TERMS, map(float, steps))))
 
 
 def _implied_text(gains: dict[str, float]) -> str:
     return ", ".join(f"{t} ≈ {g:.3g}" for t, g in gains.items())
+
+
+def _shown(terms: tuple[dict[str, float], dict[str, float], dict[str, float]], c: Controller) -> dict[str, float]:
+    """The gains of :func:`term_gains`, with 0 for a term the manifest leaves 0 whose fitted gain moves u by
+    TERM_SHARE of its RMS or less, or by less than a printed step (a fitted Ki of 6e-07 is no integral gain)."""
+    gains, moved, steps = terms
+    given = dict(zip(TERMS, (c.Kp, c.Ki, c.Kd)))
+    return {t: 0.0 if given[t] == 0 and (moved[t] <= TERM_SHARE or steps[t] < 1.0) else g for t, g in gains.items()}
 
 
 def gain_notes(runs: list[GapRun], k_fb: float | None, T: float) -> list[str]:
@@ -295,7 +304,7 @@ def check_gains(runs: list[GapRun], k_fb: float | None, T: float) -> float | Non
             c = run.controller
             factor = v / ref
             terms = term_gains(run, T, ref)
-            each = "" if terms is None else f"; term by term, {_implied_text(terms[0])}"
+            each = "" if terms is None else f"; term by term, {_implied_text(_shown(terms, c))}"
             raise DiagnosisError(
                 f"run {run.name}: the manifest gives Kp = {c.Kp:g} (Ki = {c.Ki:g}, Kd = {c.Kd:g}) but the recorded "
                 f"controller output u implies gains {factor:.3g} times those (Kp ≈ {c.Kp * factor:.3g}){each}; "

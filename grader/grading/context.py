@@ -58,8 +58,12 @@ class KeyContext:
         return self.key.params()
 
     def matching_inputs(self) -> dict[str, float]:
-        """The inputs of the students' coefficient matching (ω, Kp_crit, Kq, Kpot, A, M, Kamp, B)."""
-        e = self.key.quantities["beta_over_Vt"].inputs
+        """The inputs of the students' coefficient matching (ω, Kp_crit, Kq, Kpot, A, M, Kamp, B); KeyFileError where
+        the key has none (β/Vt not identifiable: no critical oscillation, or no Kq)."""
+        entry = self.key.quantities["beta_over_Vt"]
+        if entry.value is None or not entry.inputs:
+            raise KeyFileError(f"the key's beta_over_Vt has no coefficient matching to redo ({entry.reason})")
+        e = entry.inputs
         return {"omega": e["omega_crit [rad/s]"], "kp_crit": e["Kp_crit"], "Kq": e["Kq [in^3/s/mA]"],
                 "Kpot": e["Kpot [V/in]"], "A": e["A [in^2]"], "M": e["M [lbf*s^2/in]"], "Kamp": e["Kamp [mA/V]"],
                 "B": e["B [lbf*s/in]"]}

@@ -19,8 +19,9 @@ When fewer than :data:`CORE_MIN` readings on a side come before that point (a va
 within a volt of its null), no V can be fitted to the linear region alone, and Kq is that clipped
 V's own slope, fitted to every reading (the plateau pins the flow there, the few readings near the
 null the slope). When no reading but the null's lies clearly below the plateau (a valve saturating
-within one input step of its null), any slope steep enough fits: Kq, the null and the leakage are
-then ``not_identifiable``, with the reason, rather than a number the data do not give.
+within one input step of its null, or fewer than three readings below the plateau), any slope steep
+enough fits: Kq, the null and the leakage are then ``not_identifiable``, with the reason, rather than a
+number the data do not give.
 """
 
 from __future__ import annotations
@@ -75,27 +76,59 @@ def _core(d: NDArray[np.float64], d_sat: float) -> NDArray[np.bool_]:
     return keep
 
 
-def _meter_noise(i: NDArray[np.float64], q: NDArray[np.float64]) -> float:
-    """RMS [in³/s] of the meter's noise from every reading: the median absolute second difference of the readings
-    in current order, over 0.6745·√6 (a straight run of readings has none; the few at the null and the clip do not
-    move the median). Evenly spaced inputs assumed, as the procedure takes them."""
-    d2 = np.diff(q[np.argsort(i)], 2)
-    return float(np.median(np.abs(d2)) / (0.6745 * np.sqrt(6.0))) if d2.size else 0.0
+#: Fewest three-reading runs on one straight piece of the clipped V that :func:`_meter_noise` needs.
+NOISE_RUNS = 3
+
+
+def _line_offsets(d: NDArray[np.float64], q: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """For each run of three neighbouring inputs ``d`` [mA] (readings repeated at one input averaged first): the
+    middle reading's offset from the line through the other two, scaled to the noise's variance, and whether the
+    run lies on one side of the null (d = 0)."""
+    u, inv = np.unique(d, return_inverse=True)
+    m = np.bincount(inv, weights=q) / np.bincount(inv)
+    lo, mid, hi = u[:-2], u[1:-1], u[2:]
+    wl, wr = (hi - mid) / (hi - lo), (mid - lo) / (hi - lo)
+    off = (m[1:-1] - wl * m[:-2] - wr * m[2:]) / np.sqrt(1.0 + wl**2 + wr**2)
+    return off, (np.sign(lo) == np.sign(hi)) & (np.sign(mid) == np.sign(lo)) & (mid != 0)
+
+
+#: A flow test whose readings span less than FLAT_NOISE times the meter's noise shows no flow change.
+FLAT_NOISE = 8.0
+
+
+def _flat(i: NDArray[np.float64], q: NDArray[np.float64]) -> bool:
+    """Whether the readings do not change with the current beyond the meter's noise (median offset of every run of
+    three, over 0.6745; a V's corner and a clip's are a few runs): a valve that does not respond, or saturates at
+    every input."""
+    off, _ = _line_offsets(i, q)
+    return bool(off.size >= NOISE_RUNS and np.ptp(q) < FLAT_NOISE * float(np.median(np.abs(off))) / 0.6745)
+
+
+def _meter_noise(d: NDArray[np.float64], q: NDArray[np.float64], d_sat: float) -> float:
+    """RMS [in³/s] of the meter's noise from the readings (``d`` = i − i0 [mA]), or 0 from fewer than
+    :data:`NOISE_RUNS` runs: each run of three neighbouring inputs on one straight piece of the clipped V (one
+    side of the null, all short of ``d_sat`` or all beyond it) leaves its middle reading off the line through the
+    other two by noise alone; the median of those offsets, each scaled to unit variance, over 0.6745. Readings
+    repeated at one input are averaged first (their noise then counts a little less)."""
+    off, same_side = _line_offsets(d, q)
+    u = np.unique(d)
+    one_piece = (np.abs(u[:-2]) < d_sat) == (np.abs(u[2:]) < d_sat)
+    runs = np.abs(off[same_side & one_piece])
+    return float(np.median(runs) / 0.6745) if runs.size >= NOISE_RUNS else 0.0
 
 
 def _linear_region(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[np.float64], d_sat: float,
-                   inside: NDArray[np.bool_]) -> NDArray[np.bool_]:
+                   inside: NDArray[np.bool_], meter: float) -> NDArray[np.bool_]:
     """Points on the V: start from the core (:func:`_core`, cut short of ``d_sat`` [mA]) and grow each side
     outward, among the points ``inside`` (short of where the clipped V saturates), until a point and the next one
     out both leave the fitted V on the same side by more than 4 σ or 1 % (saturation begins there, and it
-    persists). σ is the larger of the core fit's residual RMS and the meter noise of every reading
-    (:func:`_meter_noise`): a core of five readings (2 V steps) leaves 2 degrees of freedom, whose RMS came out at a
+    persists). σ is the larger of the core fit's residual RMS and the meter noise ``meter`` [in³/s] of every
+    reading (:func:`_meter_noise`): a core of five readings (2 V steps) leaves 2 degrees of freedom, whose RMS came out at a
     twentieth of the noise and stopped the region at unsaturated readings. A single reading off the V is noise and
     stays in: stopping at it ends the region where the noise happens to pull against the slope. The outermost
     reading, with none beyond to tell, stays out when it is off the V."""
     d = i - x0[1]
     keep = _core(d, d_sat)
-    meter = _meter_noise(i, q)
     for side in (1.0, -1.0):
         outer = np.flatnonzero((np.sign(d) == side) & ~keep & inside)
         order = outer[np.argsort(np.abs(d[outer]))]
@@ -110,14 +143,26 @@ def _linear_region(i: NDArray[np.float64], q: NDArray[np.float64], x0: NDArray[n
     return keep
 
 
-def _slope_seen(d: NDArray[np.float64], q: NDArray[np.float64], fit: OptimizeResult, d_sat: float) -> bool:
-    """Whether a reading other than the null's (the one nearest ``fit``'s null; ``d`` = i − i0 [mA]) lies clearly
-    below the clipped V's plateau: by more than 3 σ of the plateau readings' scatter and 1 % of the plateau."""
+def _slope_seen(i: NDArray[np.float64], q: NDArray[np.float64], fit: OptimizeResult, d_sat: float) -> bool:
+    """Whether the readings on the slope can give it: the run of neighbouring inputs round the lowest reading that
+    lie below the clipped V's plateau (by more than 2 σ of the plateau readings' scatter and 1 % of the plateau)
+    holds at least three readings, with some on each side of the lowest. Fewer leave the V's slope, null and
+    leakage (three unknowns) undetermined: a null between two readings puts both below the plateau at the same
+    distance from it, and any slope steep enough fits them. Only the run counts, so that a plateau reading the
+    noise pulls low does not stand in for a third."""
     top = float(fit.x[3] + fit.x[2])
-    plateau = np.abs(d) >= d_sat
+    plateau = np.abs(i - fit.x[1]) >= d_sat
     sd = float(np.std(q[plateau], ddof=1)) if plateau.sum() > 2 else 0.0
-    off_null = np.arange(d.size) != int(np.argmin(np.abs(d)))
-    return bool(np.any(off_null & (q < top - max(3.0 * sd, 0.01 * top))))
+    order = np.argsort(i, kind="stable")
+    below = q[order] < top - max(2.0 * sd, 0.01 * top)
+    low = int(np.argmin(q[order]))
+    left = low
+    while left > 0 and below[left - 1]:
+        left -= 1
+    right = low
+    while right < below.size - 1 and below[right + 1]:
+        right += 1
+    return left < low < right
 
 
 class FlowGainFit:
@@ -143,6 +188,9 @@ class FlowGainFit:
             too_large = not (np.isfinite(i @ i) and np.isfinite(q @ q))
         if too_large:
             raise IdentificationError("flow test: the currents (Kamp × input) or the flows are too large to fit")
+        if _flat(i, q):
+            return self._unidentified(v.size, "the readings do not change with the input beyond the meter's noise: "
+                                              "the valve does not respond, or its flow saturates at every input")
         null = int(np.argmin(q))
         side = np.sign(i - i[null])
         if not (np.any(side > 0) and np.any(side < 0)):
@@ -152,13 +200,16 @@ class FlowGainFit:
         clipped = _fit_clipped(i, q, x0)
         d_sat = _saturation_current(clipped)
         if _early_saturation(i - x0[1], d_sat):
-            if not _slope_seen(i - clipped.x[1], q, clipped, d_sat):
-                return self._unidentified(v.size)
+            if not _slope_seen(i, q, clipped, d_sat):
+                return self._unidentified(v.size, (
+                    "the flow saturates within one input step of the valve null: fewer than three readings lie below "
+                    "the plateau, too few for the slope, the null and the leakage, so any steep enough slope fits; "
+                    "readings in smaller steps round the null would give it"))
             res, mask = clipped, np.abs(i - clipped.x[1]) < d_sat
             res.x[0] = abs(res.x[0])
             method = "min(|Kq·(i−i0)|, Qs) + leakage fitted to every reading (the flow saturates next to the null)"
         else:
-            mask = _linear_region(i, q, x0, d_sat, np.abs(i - clipped.x[1]) < d_sat)
+            mask = _linear_region(i, q, x0, d_sat, np.abs(i - clipped.x[1]) < d_sat, _meter_noise(i - x0[1], q, d_sat))
             res = _fit_v(i[mask], q[mask], x0)
             method = "|Kq·(i−i0)| + leakage fitted over the linear region (saturation excluded)"
         dof = res.fun.size - res.x.size
@@ -173,10 +224,8 @@ class FlowGainFit:
         self.linear_mask_ = mask
         return self
 
-    def _unidentified(self, n: int) -> FlowGainFit:
-        """Every learned value ``not_identifiable``: the flow saturates within one input step of the null."""
-        reason = ("the flow saturates within one input step of the valve null: every reading but the null's is on "
-                  "the plateau, so any steep enough slope fits; readings in smaller steps round the null would give it")
+    def _unidentified(self, n: int, reason: str) -> FlowGainFit:
+        """Every learned value ``not_identifiable``, for ``reason``."""
         method = "min(|Kq·(i−i0)|, Qs) + leakage fitted to every reading"
         self.Kq_ = not_identifiable("in**3/s/mA", method, reason)
         self.null_current_ = not_identifiable("mA", "null of the same fit", reason)

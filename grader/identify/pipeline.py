@@ -10,7 +10,7 @@ lab asks students to predict, with intervals propagated from the measurements.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -109,6 +109,20 @@ INSTABILITY_ITEMS = {"omega_crit": "rad/s", "growth_rate": "1/s", "Kp_crit": Non
                      "Kce": "in**3/s/psi", "char_poly_a2": "1/s", "char_poly_a1": "1/s**2", "char_poly_a0_per_Kp": None}
 
 
+class _NeedsKq(IdentificationError):
+    """The instability run oscillates, but no model matches it without Kq: ``estimates`` holds what the run gives
+    alone (ω_crit, the growth rate, Kp_crit)."""
+
+    def __init__(self, reason: str, estimates: Mapping[str, Estimate]) -> None:
+        super().__init__(reason)
+        self.estimates = dict(estimates)
+
+
+def _kp_crit(kp: float, volts: bool, run: Run) -> Estimate:
+    return Estimate(kp, "dimensionless" if volts else "V/in", 0.0, "gain of the instability run (manifest)",
+                    {"run": run.name})
+
+
 def identify(dataset: Dataset) -> Identification:
     """Run the identification procedure on ``dataset``."""
     for what in ("calibration", "flow_test", "friction"):
@@ -128,6 +142,7 @@ def identify(dataset: Dataset) -> Identification:
                  "char_poly_a0_per_Kp": "1/s**3" if volts else "in/V/s**3"}
         reason = str(exc).removeprefix("instability run: ")
         est = {name: not_identifiable(unit, f"from the instability run {run.name}", reason) for name, unit in units.items()}
+        est.update(exc.estimates if isinstance(exc, _NeedsKq) else {})
         model = students = None
     return Identification(estimates={**static, **est}, params=model, students_params=students,
                           kp_run=run.controller.Kp, dataset=dataset, match_B=B_model)
@@ -140,12 +155,15 @@ def _from_oscillation(dataset: Dataset, run: Run, static: Mapping[str, Estimate]
     g, fb = dataset.given, dataset.manifest.feedback
     kp, volts = run.controller.Kp, fb == "volts"
     Kq, Kpot = static["Kq"], static["Kpot"]
-    if Kq.status != "ok":
-        raise IdentificationError(f"needs Kq, which the flow test does not give: {Kq.reason}")
     a_sat = saturation_amplitude(g, kp, Kpot.value if volts else 1.0)
     first = OscillationFit(a_sat).fit(run.t, run.y, start=command_start(run))
     if not first.usable_:
         raise IdentificationError(f"{first.why_not_}; raise Kp until the oscillation grows")
+    if Kq.status != "ok":  # the oscillation is read; friction's decrement and the matching need the model's Kq
+        raw = "as read, without Coulomb friction's decrement (it needs Kq, which the flow test does not give)"
+        raise _NeedsKq(f"needs Kq, which the flow test does not give: {Kq.reason}",
+                       {"omega_crit": first.omega_, "growth_rate": replace(first.sigma_, note=raw),
+                        "Kp_crit": _kp_crit(kp, volts, run)})
     rough = _coefficient_model(g, fb, kp, B_model, first.omega_.value, Kq.value, Kpot.value)
     c = friction_decrement(rough, kp, static["Fc"].value, first.omega_.value)
     osc = OscillationFit(a_sat).fit(run.t, run.y, start=command_start(run), decrement=c, guess=first) if c > 0 else first
@@ -166,8 +184,7 @@ def _from_oscillation(dataset: Dataset, run: Run, static: Mapping[str, Estimate]
     est = {
         "omega_crit": osc.omega_,
         "growth_rate": osc.sigma_,
-        "Kp_crit": Estimate(kp, "dimensionless" if volts else "V/in", 0.0, "gain of the instability run (manifest)",
-                            {"run": run.name}),
+        "Kp_crit": _kp_crit(kp, volts, run),
         "beta_over_Vt": Estimate(bv, "psi/in**3", ses[0], f"{matching} (ζ = 0)", inputs),
         "Kce": Estimate(kce, "in**3/s/psi", ses[1], f"{matching} (ζ = 0)", inputs),
         "char_poly_a2": Estimate(a2, "1/s", ses[2], f"s² coefficient, B/M + 4β/Vt·Kce, after {matching}", inputs),

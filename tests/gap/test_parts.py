@@ -151,13 +151,14 @@ def test_noise_floor_covers_the_quantisation_error(bits: int) -> None:
     assert noise.floor == pytest.approx(np.sqrt(0.0004**2 + q**2 / 12), rel=0.35)
 
 
-@pytest.mark.parametrize(("q", "sigma", "printed"), [
-    (1e-4, 0.00025, True),  # printed to 4 decimals of an inch, noise 2.5 steps: print precision (a false ADC before)
-    (0.001 / 25.4, 0.0001, True),  # printed to 3 decimals of a millimetre
-    (1e-3, 0.0002, False),  # printed coarser than the noise (0.2 steps): the readings students read are quantised
-    (20.0 / 2**16 / 0.85, 0.0005, False),  # a 16-bit ADC through a 0.85 V/in pot: not a decimal step, an ADC
+@pytest.mark.parametrize(("q", "sigma", "kpot", "printed"), [
+    (1e-4, 0.00025, 0.85, True),  # printed to 4 decimals of an inch, noise 2.5 steps: print precision (a false ADC before)
+    (0.001 / 25.4, 0.0001, 0.85, True),  # printed to 3 decimals of a millimetre
+    (1e-3, 0.0002, 0.85, False),  # printed coarser than the noise (0.2 steps): the readings students read are quantised
+    (20.0 / 2**16 / 0.85, 0.0005, 0.85, False),  # a 16-bit ADC through a 0.85 V/in pot: not a decimal step, an ADC
+    (20.0 / 2**16 / 0.7752, 0.0005, 0.7752, False),  # a 16-bit ADC whose step is 0.01 mm to 0.05 %: a whole number of bits
 ])
-def test_a_decimal_lattice_the_noise_dithers_is_print_precision_not_an_adc(q: float, sigma: float,
+def test_a_decimal_lattice_the_noise_dithers_is_print_precision_not_an_adc(q: float, sigma: float, kpot: float,
                                                                           printed: bool) -> None:
     """A lattice that is a power of ten in a length unit, finer than the reading noise, is the file's print
     precision: a note, never the sensor_quantization verdict. An ADC's step, or one coarser than the noise,
@@ -169,7 +170,7 @@ def test_a_decimal_lattice_the_noise_dithers_is_print_precision_not_an_adc(q: fl
         run = _step_run(0.5, sigma=sigma, seed=seed)
         y = np.round((run.y - 0.002 * (run.t > 0.1)) / q) * q  # a steady-state error of 2 mil to read off
         runs.append(GapRun(run.name, "step", run.controller, run.t, run.r, y, None, run.start, run.scale, run.noise))
-    quant = assess(runs, estimate(runs), 0.85)
+    quant = assess(runs, estimate(runs), kpot)
     assert quant is not None and quant.printed is printed
     assert quant.readoff_share >= 0.01  # the documented rule alone would name it
     assert quant.matters is not printed

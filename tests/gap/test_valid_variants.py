@@ -328,6 +328,12 @@ def test_a_term_gain_u_contradicts_is_named_where_the_gains_as_a_whole_pass(make
     assert f"run {run.name}: the manifest gives Kd = {kd:g}" in note and f"Kd ≈ {1.3 * kd:.3g}" in note
     assert "Kp" not in note  # the right gains are not blamed
     assert len(gain_notes([replace(wrong, u=np.round(wrong.u, 2))], k, T)) == 1  # u printed to 0.01 V
+    # two run lengths at rest before the command: their u of exactly 0 must not read as a print in whole volts
+    n = 2 * run.n
+    rest = replace(wrong, t=np.concatenate([run.t[0] - T * np.arange(n, 0, -1), run.t]),
+                   r=np.concatenate([np.full(n, run.r[0]), run.r]), y=np.concatenate([np.full(n, run.r[0]), run.y]),
+                   u=np.concatenate([np.zeros(n), wrong.u]), noise=np.concatenate([np.zeros(n), run.noise]))
+    assert len(gain_notes([rest], k, T)) == 1
     # printed to 0.1 V, right gains: the rounding lets a term's fitted gain wander by up to half a step's RMS (before
     # the resolution rule, 34 of 113 datasets of run A and an independent simulator's got a note; this step run too)
     for r in [*runs, right]:
@@ -349,3 +355,8 @@ def test_a_refused_runs_message_names_the_term_that_is_off(make: MakeDataset) ->
     with pytest.raises(DiagnosisError, match="term by term") as exc:
         check_gains([*runs[:j], bad, *runs[j + 1:]], None, T)
     assert f"Ki ≈ {2.0 * c.Ki:.3g}" in str(exc.value) and f"Kp ≈ {c.Kp:.3g}" in str(exc.value)
+    # a P run at half its manifest gain: the terms it does not have read 0, not a fitted 6e-07
+    j = next(i for i, r in enumerate(runs) if r.controller.Ki == 0 and r.controller.Kd == 0)
+    half = replace(runs[j], u=_law_u(runs[j], replace(runs[j].controller, Kp=0.5 * runs[j].controller.Kp), k, T))
+    with pytest.raises(DiagnosisError, match=f"term by term, Kp ≈ {0.5 * runs[j].controller.Kp:.3g}, Ki ≈ 0, Kd ≈ 0;"):
+        check_gains([*runs[:j], half, *runs[j + 1:]], None, T)

@@ -137,6 +137,10 @@ NI_CASES = [
      {"Kce": "correct", "Kp_crit": "correct", "closed_loop_poles": "correct"}),
     ({"Kce": "7e-4 in^3/s/psi", "Kp_no_overshoot": "20", "closed_loop_poles": [{"Kp": 10, "poles": ["-50+300j", "-50-300j", "-200"]}]},
      {"Kce": "incorrect", "Kp_no_overshoot": "incorrect", "closed_loop_poles": "incorrect"}),
+    # a wrong upstream value asks for the matching to be redone, which such a key cannot: graded against the key
+    # (it read "this answer could not be checked: KeyError")
+    ({"Kq": "0.03848 in^3/s/mA", "omega_crit": "148.4 rad/s", "Kp_crit": 58.0, "beta_over_Vt": "19060 psi/in^3",
+      "Kce": "0.0008452 in^3/s/psi"}, {"beta_over_Vt": "incorrect", "Kce": "incorrect"}),
     ({"Kq": "0.05 in^3/s/mA", "Kp_no_overshoot": "20", "pd_design": {"Kp": 10, "Kd": 0.05}},
      {"Kq": "incorrect", "Kp_no_overshoot": "incorrect", "pd_design": "invalid"}),
 ]

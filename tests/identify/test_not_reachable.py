@@ -143,7 +143,13 @@ def test_flow_test_saturating_within_one_step_keys_kq_as_not_identifiable(tmp_pa
     assert key.model.Kq is None and key.model.Kce is None and not key.identified
     for name in ("Kq", "leakage"):
         assert key.quantities[name].status == "not_identifiable" and key.quantities[name].value is None
-    assert (key.quantities["Kce"].reason or "").startswith("needs Kq, which the flow test does not give")
+    for name in ("beta_over_Vt", "Kce", "char_poly_a1", "Kp_no_overshoot"):
+        assert "needs Kq, which the flow test does not give" in (key.quantities[name].reason or ""), name
+    # what the run gives without a model stays: Kp_crit (the manifest's gain) and the oscillation as read
+    default = read_key(reference_dir() / "keys" / "default.json")
+    assert key.quantities["Kp_crit"].value == default.quantities["Kp_crit"].value
+    assert key.quantities["omega_crit"].value == pytest.approx(default.quantities["omega_crit"].value, rel=0.01)
+    assert "without Coulomb friction's decrement" in (key.quantities["growth_rate"].note or "")
     assert key.quantities["Kpot"].reachable and key.quantities["Fc"].reachable
     notes: list[str] = []
     assert _flow_kq(load(ds), notes) is None and "within one input step" in notes[0]
