@@ -117,14 +117,23 @@ def upper_lower_index(item: np.ndarray, rest: np.ndarray, item_max: float, fract
     """Kelley's upper–lower discrimination index on the rest-of-test score.
 
     (mean item score of the top 27 % − that of the bottom 27 %) / item max.
-    Students are ranked by rest score; ties at a cut are broken by file order.
+    Students are ranked by rest score; students tied at a cut share its last places, each with an equal weight,
+    so that the index does not hang on the rows' order (:func:`_group_mean`).
     """
     size = round(fraction * len(item))
     if size < 1 or 2 * size > len(item):
         return None
-    order = np.argsort(np.asarray(rest), kind="stable")
-    low, high = np.asarray(item)[order[:size]], np.asarray(item)[order[-size:]]
-    return float((high.mean() - low.mean()) / item_max)
+    item, rest = np.asarray(item, dtype=float), np.asarray(rest, dtype=float)
+    return float((_group_mean(item, -rest, size) - _group_mean(item, rest, size)) / item_max)
+
+
+def _group_mean(item: np.ndarray, rank: np.ndarray, size: int) -> float:
+    """Mean item score of the ``size`` students lowest in ``rank``; the students tied at the cut fill its
+    remaining places with equal weights."""
+    cut = np.sort(rank)[size - 1]
+    below, tied = rank < cut, rank == cut
+    weight = below + tied * (size - int(below.sum())) / int(tied.sum())
+    return float(weight @ item / size)
 
 
 def minimum_detectable_d(n1: int, n2: int, power: float = POWER, alpha: float = ALPHA) -> float | None:

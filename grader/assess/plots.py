@@ -109,7 +109,7 @@ def likert_figure(report: SurveyReport) -> Figure:
         (lab.lab_name, [i for i in report.items if i.lab == lab.lab], lab_order) for lab in report.labs
     ]
     if report.overall:
-        panels.append(("Overall ME 422 laboratory", list(report.overall), statement_order(report.overall)))
+        panels.append(("Overall statements", list(report.overall), statement_order(report.overall)))
     heights = [len(order) + 1.2 for _, _, order in panels]
     fig = Figure(figsize=(9.5, 0.42 * sum(heights) + 1.2), layout="constrained")
     axes = fig.subplots(len(panels), 1, sharex=True, gridspec_kw={"height_ratios": heights})

@@ -23,7 +23,11 @@ from grader.errors import AssessmentError
 T = TypeVar("T")
 #: Template columns that are allowed but never read (and never reported).
 TEMPLATE_EXTRA_COLUMNS = frozenset({"respondent"})
-_QUALTRICS_SKIP_STATUS = frozenset({"survey preview", "survey test", "spam", "preview spam"})
+#: Qualtrics' response types left out, as choice text or as numeric codes (1 Survey Preview, 2 Survey Test, 8 Spam,
+#: 9 Survey Preview Spam, 12 Imported Spam, 17 Offline Survey Preview; 0 IP Address, 4 Imported and 16 Offline are
+#: responses).
+_QUALTRICS_SKIP_STATUS = frozenset({"survey preview", "survey test", "spam", "preview spam", "survey preview spam",
+                                    "imported spam", "offline survey preview", "1", "2", "8", "9", "12", "17"})
 
 
 @dataclass(frozen=True)
@@ -204,7 +208,7 @@ def _parse(
     notes: list[str],
 ) -> SurveyData:
     parsed: dict[str, tuple[Any, ...]] = {
-        f.header: _column(rows, index[f.header], f, _parser(f, mapping)) for f in fields
+        f.header: _column(rows, index[f.header], f, _parser(f, mapping, rows, index[f.header])) for f in fields
     }
     by_kind = {kind: [f for f in fields if f.kind == kind] for kind in ("did_lab", "rating", "overall")}
     did = {f.lab: parsed[f.header] for f in by_kind["did_lab"] if f.lab}
@@ -231,11 +235,24 @@ def _parse(
     )
 
 
-def _parser(spec: ColumnSpec, mapping: SurveyMapping) -> Callable[[str], Any]:
+#: Qualtrics' numeric export codes a Yes/No choice 1 = Yes, 2 = No.
+_QUALTRICS_YES_NO = {"1": "yes", "2": "no"}
+
+
+def _did_lab_parser(rows: _Rows, col: int) -> Callable[[str], bool | None]:
+    """:func:`parse_yes_no`, or, where the column's answers are the codes 1 and 2 and no other (Qualtrics'
+    numeric export of a Yes/No choice), 1 = Yes and 2 = No. A column of 1 and 0 reads as Yes and No either way."""
+    codes = {normalize(row[col]) for _, row in rows.records} - {""}
+    if "2" in codes and codes <= set(_QUALTRICS_YES_NO):
+        return lambda raw: parse_yes_no(_QUALTRICS_YES_NO.get(normalize(raw), raw))
+    return parse_yes_no
+
+
+def _parser(spec: ColumnSpec, mapping: SurveyMapping, rows: _Rows, col: int) -> Callable[[str], Any]:
     parsers: dict[str, Callable[[str], Any]] = {
         "rating": mapping.scale.parse,
         "overall": mapping.scale.parse,
-        "did_lab": parse_yes_no,
+        "did_lab": _did_lab_parser(rows, col),
         "hours": parse_hours,
         "most_useful": str,
     }

@@ -49,7 +49,7 @@ def build_survey_report(data: SurveyData, mapping: SurveyMapping) -> SurveyRepor
         comparisons=[_comparison(data, mapping, s.id) for s in mapping.statements],
         hours=None if data.hours is None else _hours(_array(data.hours)),
         most_useful=None if data.most_useful is None else most_useful(data.most_useful, mapping.labs),
-        notes=_notes(data, mapping),
+        notes=_notes(data, mapping) + _alpha_notes(_alphas(data, mapping)),
         limitations=_limitations(data, mapping),
     )
 
@@ -127,6 +127,15 @@ def _alphas(data: SurveyData, mapping: SurveyMapping) -> list[Alpha]:
         ci = None if value is None else stats.feldt_ci(value, n, k)
         out.append(Alpha(lab=lab.id, lab_name=lab.name, value=value, n=n, k=k, ci=ci))
     return out
+
+
+def _alpha_notes(alphas: list[Alpha]) -> list[str]:
+    """A note for each lab whose Cronbach's alpha is below 0: its statements' ratings vary against each other, as
+    a reverse-worded statement makes them (the mapping has no reverse scoring: reword it, or recode its answers)."""
+    return [f"Cronbach's alpha for {a.lab_name} is {a.value:.2f}, below 0: its statements' ratings vary against each "
+            "other, as a reverse-worded statement makes them; every statement is read with higher as better, so recode "
+            "a reverse-worded one (scale points + 1 − rating) before reading its figures"
+            for a in alphas if a.value is not None and a.value < 0]
 
 
 def _comparison(data: SurveyData, mapping: SurveyMapping, statement: str) -> Comparison:

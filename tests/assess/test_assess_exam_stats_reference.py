@@ -101,3 +101,20 @@ def test_item_rest_correlation_and_upper_lower_index_by_hand() -> None:
     assert es.upper_lower_index(item, rest, item_max=4) == pytest.approx((4 - 2 / 3) / 4)
     assert es.item_rest_r(item, rest) == pytest.approx(np.corrcoef(item, rest)[0, 1])
     assert es.item_rest_r(np.ones(5), np.arange(5.0)) is None
+
+
+def test_upper_lower_index_does_not_hang_on_row_order_at_a_tied_cut() -> None:
+    """Rest scores tied at the 27 % cut: the tied students share its last places with equal weights, so every order
+    of the same rows gives the same index (file order broke the tie, and a real exam's index moved from 0.225 to
+    0.253 with its rows reversed). By hand: bottom 3 of 10 = rest 0 (item 0) and two of the three tied at rest 1
+    (items 1, 2, 4: mean 7/3 each, weight 2/3); top 3 = rest 8, 8, 9 (items 4, 3, 4)."""
+    item = np.array([0, 1, 2, 4, 2, 3, 3, 4, 3, 4], dtype=float)
+    rest = np.array([0, 1, 1, 1, 4, 5, 6, 7, 8, 9], dtype=float)
+    rest[7] = 8.0
+    low = (0 + (1 + 2 + 4) * 2 / 3) / 3
+    high = (4 + 3 + 4) / 3
+    expected = (high - low) / 4
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        order = rng.permutation(item.size)
+        assert es.upper_lower_index(item[order], rest[order], item_max=4) == pytest.approx(expected, abs=1e-12)

@@ -241,3 +241,42 @@ def test_a_formula_cell_without_a_saved_value_is_named_not_read_as_missing(tmp_p
     wb.active["O3"] = "=2+3"
     wb.save(tmp_path / "t.xlsx")
     assert "cell O3 holds a formula (=2+3) with no saved value" in _error(tmp_path / "t.xlsx")
+
+
+def test_qualtrics_numeric_codes_read_like_its_choice_text(tmp_path: Path) -> None:
+    """Qualtrics' numeric export codes a Yes/No choice 1 = Yes, 2 = No (a "2" was refused as "not Yes or No") and
+    the response type as a number (1 = Survey Preview: such rows were kept as respondents, silently). The same
+    answers, coded so, give the same figures as the choice-text export; a did-lab column of 1 and 0 still reads
+    1 = Yes, 0 = No."""
+    rows = _rows("survey_qualtrics.csv")
+    status = rows[0].index("Status")
+    coded = [list(r) for r in rows]
+    for r in coded[3:]:
+        r[:] = [{"Yes": "1", "No": "2"}.get(c, c) for c in r]
+        r[status] = {"Survey Preview": "1", "IP Address": "0"}.get(r[status], r[status])
+    assert any(r[status] == "1" for r in coded[3:]) and any("2" == c for r in coded[3:] for c in r)
+    figures = {
+        name: build_survey_report(read_survey(path, MAPPING), MAPPING).model_dump(mode="json", exclude={"form", "notes"})
+        for name, path in (("text", FIXTURES / "survey_qualtrics.csv"), ("coded", _write(tmp_path / "n.csv", coded)))
+    }
+    assert figures["coded"] == figures["text"] and figures["coded"]["respondents"] == 65
+    ones_zeros = [list(r) for r in rows]
+    for r in ones_zeros[3:]:
+        r[:] = [{"Yes": "1", "No": "0"}.get(c, c) for c in r]
+    report = build_survey_report(read_survey(_write(tmp_path / "z.csv", ones_zeros), MAPPING), MAPPING)
+    assert report.model_dump(mode="json", exclude={"form", "notes"}) == figures["text"]
+
+
+def test_a_negative_alpha_gets_a_note(tmp_path: Path) -> None:
+    """Two Motomatic statements answered reverse-worded (6 − rating): the lab's Cronbach's alpha falls below 0, and a
+    note says what that means and how to recode; the other labs' alphas are untouched and get none."""
+    rows = _rows("survey_template.csv")
+    for name in ("motomatic.models", "motomatic.controllers"):
+        col = rows[0].index(name)
+        for r in rows[1:]:
+            r[col] = str(6 - int(r[col])) if r[col].strip().isdigit() else r[col]
+    report = build_survey_report(read_survey(_write(tmp_path / "rev.csv", rows), MAPPING), MAPPING)
+    alpha = {a.lab: a.value for a in report.alpha}
+    assert alpha["motomatic"] is not None and alpha["motomatic"] < 0 < min(v for k, v in alpha.items() if k != "motomatic")
+    (note,) = [n for n in report.notes if "Cronbach's alpha" in n]
+    assert note.startswith("Cronbach's alpha for Motomatic is -") and "reverse-worded" in note
