@@ -35,6 +35,7 @@ def _array(values: Sequence[float | None]) -> np.ndarray:
 
 def build_survey_report(data: SurveyData, mapping: SurveyMapping) -> SurveyReport:
     """Every summary, test and sentence of the survey report."""
+    alphas = _alphas(data, mapping)
     return SurveyReport(
         form=data.form,
         respondents=data.respondents,
@@ -45,11 +46,11 @@ def build_survey_report(data: SurveyData, mapping: SurveyMapping) -> SurveyRepor
             _rating_stats(_array(data.overall[o.id]), mapping, o.id, o.label, data.respondents)
             for o in mapping.overall
         ],
-        alpha=_alphas(data, mapping),
+        alpha=alphas,
         comparisons=[_comparison(data, mapping, s.id) for s in mapping.statements],
         hours=None if data.hours is None else _hours(_array(data.hours)),
         most_useful=None if data.most_useful is None else most_useful(data.most_useful, mapping.labs),
-        notes=_notes(data, mapping) + _alpha_notes(_alphas(data, mapping)),
+        notes=_notes(data, mapping) + _alpha_notes(alphas),
         limitations=_limitations(data, mapping),
     )
 
