@@ -225,12 +225,38 @@ TERMS = ("Kp", "Ki", "Kd")
 TERM_SHARE = 0.05
 
 
-def term_gains(run: GapRun, T: float, k_fb: float) -> tuple[dict[str, float], dict[str, float], dict[str, float]] | None:
-    """(the gains Kp, Ki, Kd that reproduce the recorded u from the reading the controller saw with feedback gain
-    ``k_fb``; for each, the RMS by which its difference from the manifest's moves u, as a share of u's RMS, and in
-    steps of the resolution u was printed with), or None without u or 20 rows within the DAC's range. A robust
-    least-squares fit (soft-L1 loss: a few rows the controller never saw do not set it) started from the manifest's
-    gains; a gain the manifest leaves 0 is fitted too."""
+@dataclass(frozen=True)
+class TermFit:
+    """The gains Kp, Ki, Kd the recorded u implies (:func:`term_gains`) beside the manifest's (``given``); for each,
+    the RMS by which its difference from the manifest's moves u, as a share of u's RMS (``moved``) and in steps of
+    the resolution u was printed with (``steps``)."""
+
+    given: dict[str, float]
+    gains: dict[str, float]
+    moved: dict[str, float]
+    steps: dict[str, float]
+
+    def visible(self, term: str) -> bool:
+        """Whether the difference in ``term`` shows in u: more than TERM_SHARE of its RMS and a printed step."""
+        return self.moved[term] > TERM_SHARE and self.steps[term] >= 1.0
+
+    def off(self) -> list[str]:
+        """The terms whose gain u implies is not the manifest's: visible, and more than GAIN_TOLERANCE away (or not
+        in the manifest)."""
+        return [t for t in TERMS if self.visible(t)
+                and (self.given[t] == 0 or abs(self.gains[t] / self.given[t] - 1) > GAIN_TOLERANCE)]
+
+    def shown(self) -> dict[str, float]:
+        """The gains, with 0 for a term the manifest leaves 0 that does not show in u (a fitted Ki of 6e-07 is no
+        integral gain)."""
+        return {t: 0.0 if self.given[t] == 0 and not self.visible(t) else g for t, g in self.gains.items()}
+
+
+def term_gains(run: GapRun, T: float, k_fb: float) -> TermFit | None:
+    """The gains Kp, Ki, Kd that reproduce the recorded u from the reading the controller saw with feedback gain
+    ``k_fb``, or None without u or 20 rows within the DAC's range. A robust least-squares fit (soft-L1 loss: a few
+    rows the controller never saw do not set it) started from the manifest's gains; a gain the manifest leaves 0 is
+    fitted too."""
     seen = _seen(run, T)
     if seen is None or run.u is None:
         return None
@@ -250,43 +276,28 @@ def term_gains(run: GapRun, T: float, k_fb: float) -> tuple[dict[str, float], di
     moved = np.sqrt(np.mean((a * (g - c)) ** 2, axis=0))
     printed = u[u != 0]  # rows at rest print 0 in any format, and would read as whole volts
     steps = moved / max(printed_resolution(printed) if printed.size else 0.0, 1e-12)
-    return (dict(zip(TERMS, map(float, g))), dict(zip(TERMS, map(float, moved / rms))),
-            dict(zip(TERMS, map(float, steps))))
+    as_terms = lambda x: dict(zip(TERMS, map(float, x)))  # noqa: E731
+    return TermFit(as_terms(c), as_terms(g), as_terms(moved / rms), as_terms(steps))
 
 
 def _implied_text(gains: dict[str, float]) -> str:
     return ", ".join(f"{t} ≈ {g:.3g}" for t, g in gains.items())
 
 
-def _shown(terms: tuple[dict[str, float], dict[str, float], dict[str, float]], c: Controller) -> dict[str, float]:
-    """The gains of :func:`term_gains`, with 0 for a term the manifest leaves 0 whose fitted gain moves u by
-    TERM_SHARE of its RMS or less, or by less than a printed step (a fitted Ki of 6e-07 is no integral gain)."""
-    gains, moved, steps = terms
-    given = dict(zip(TERMS, (c.Kp, c.Ki, c.Kd)))
-    return {t: 0.0 if given[t] == 0 and (moved[t] <= TERM_SHARE or steps[t] < 1.0) else g for t, g in gains.items()}
-
-
 def gain_notes(runs: list[GapRun], k_fb: float | None, T: float) -> list[str]:
-    """A note for each run whose recorded u implies a term's gain other than the manifest's (:data:`TERM_SHARE`),
+    """A note for each run whose recorded u implies a term's gain other than the manifest's (:meth:`TermFit.off`),
     where the gains as a whole passed :func:`check_gains` (a derivative gain wrong by a third, say, moves the
     median slope of u on the law little): the diagnosis simulates the manifest's gains."""
     out: list[str] = []
-    if k_fb is None:
-        return out
-    for run in runs:
+    for run in runs if k_fb is not None else []:
         terms = term_gains(run, T, k_fb)
-        if terms is None:
+        if terms is None or not (off := terms.off()):
             continue
-        gains, moved, steps = terms
-        c = dict(zip(TERMS, (run.controller.Kp, run.controller.Ki, run.controller.Kd)))
-        off = [t for t in TERMS if moved[t] > TERM_SHARE and steps[t] >= 1.0
-               and (c[t] == 0 or abs(gains[t] / c[t] - 1) > GAIN_TOLERANCE)]
-        if off:
-            given = ", ".join(f"{t} = {c[t]:g}" for t in off)
-            out.append(f"run {run.name}: the manifest gives {given}, but the recorded controller output u implies "
-                       f"{_implied_text({t: gains[t] for t in off})}; the diagnosis simulates the manifest's gains, "
-                       "so correct them if u is right (a filtered derivative, or an integrator that stops at the "
-                       "DAC's limit, also shows here)")
+        given = ", ".join(f"{t} = {terms.given[t]:g}" for t in off)
+        out.append(f"run {run.name}: the manifest gives {given}, but the recorded controller output u implies "
+                   f"{_implied_text({t: terms.gains[t] for t in off})}; the diagnosis simulates the manifest's gains, "
+                   "so correct them if u is right (a filtered derivative, or an integrator that stops at the DAC's "
+                   "limit, also shows here)")
     return out
 
 
@@ -304,7 +315,7 @@ def check_gains(runs: list[GapRun], k_fb: float | None, T: float) -> float | Non
             c = run.controller
             factor = v / ref
             terms = term_gains(run, T, ref)
-            each = "" if terms is None else f"; term by term, {_implied_text(_shown(terms, c))}"
+            each = "" if terms is None else f"; term by term, {_implied_text(terms.shown())}"
             raise DiagnosisError(
                 f"run {run.name}: the manifest gives Kp = {c.Kp:g} (Ki = {c.Ki:g}, Kd = {c.Kd:g}) but the recorded "
                 f"controller output u implies gains {factor:.3g} times those (Kp ≈ {c.Kp * factor:.3g}){each}; "

@@ -80,16 +80,17 @@ def _core(d: NDArray[np.float64], d_sat: float) -> NDArray[np.bool_]:
 NOISE_RUNS = 3
 
 
-def _line_offsets(d: NDArray[np.float64], q: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+def _line_offsets(d: NDArray[np.float64], q: NDArray[np.float64]
+                  ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64]]:
     """For each run of three neighbouring inputs ``d`` [mA] (readings repeated at one input averaged first): the
     middle reading's offset from the line through the other two, scaled to the noise's variance, and whether the
-    run lies on one side of the null (d = 0)."""
+    run lies on one side of the null (d = 0); with the distinct inputs, in order."""
     u, inv = np.unique(d, return_inverse=True)
     m = np.bincount(inv, weights=q) / np.bincount(inv)
     lo, mid, hi = u[:-2], u[1:-1], u[2:]
     wl, wr = (hi - mid) / (hi - lo), (mid - lo) / (hi - lo)
     off = (m[1:-1] - wl * m[:-2] - wr * m[2:]) / np.sqrt(1.0 + wl**2 + wr**2)
-    return off, (np.sign(lo) == np.sign(hi)) & (np.sign(mid) == np.sign(lo)) & (mid != 0)
+    return off, (np.sign(lo) == np.sign(hi)) & (np.sign(mid) == np.sign(lo)) & (mid != 0), u
 
 
 #: A flow test whose readings span less than FLAT_NOISE times the meter's noise shows no flow change.
@@ -100,7 +101,7 @@ def _flat(i: NDArray[np.float64], q: NDArray[np.float64]) -> bool:
     """Whether the readings do not change with the current beyond the meter's noise (median offset of every run of
     three, over 0.6745; a V's corner and a clip's are a few runs): a valve that does not respond, or saturates at
     every input."""
-    off, _ = _line_offsets(i, q)
+    off, _, _ = _line_offsets(i, q)
     return bool(off.size >= NOISE_RUNS and np.ptp(q) < FLAT_NOISE * float(np.median(np.abs(off))) / 0.6745)
 
 
@@ -110,8 +111,7 @@ def _meter_noise(d: NDArray[np.float64], q: NDArray[np.float64], d_sat: float) -
     side of the null, all short of ``d_sat`` or all beyond it) leaves its middle reading off the line through the
     other two by noise alone; the median of those offsets, each scaled to unit variance, over 0.6745. Readings
     repeated at one input are averaged first (their noise then counts a little less)."""
-    off, same_side = _line_offsets(d, q)
-    u = np.unique(d)
+    off, same_side, u = _line_offsets(d, q)
     one_piece = (np.abs(u[:-2]) < d_sat) == (np.abs(u[2:]) < d_sat)
     runs = np.abs(off[same_side & one_piece])
     return float(np.median(runs) / 0.6745) if runs.size >= NOISE_RUNS else 0.0

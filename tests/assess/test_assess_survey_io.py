@@ -280,3 +280,18 @@ def test_a_negative_alpha_gets_a_note(tmp_path: Path) -> None:
     assert alpha["motomatic"] is not None and alpha["motomatic"] < 0 < min(v for k, v in alpha.items() if k != "motomatic")
     (note,) = [n for n in report.notes if "Cronbach's alpha" in n]
     assert note.startswith("Cronbach's alpha for Motomatic is -") and "reverse-worded" in note
+
+
+def test_a_did_lab_column_mixing_0_1_and_2_is_refused_naming_the_cell(tmp_path: Path) -> None:
+    """1/2 (Qualtrics) and 1/0 codings are each read; a column holding 0, 1 and 2 at once is neither, and its first
+    cell that fits no coding is named."""
+    rows = _rows("survey_qualtrics.csv")
+    col = next(i for i, r in enumerate(zip(*rows[3:])) if set(r) >= {"Yes", "No"})
+    mixed = [list(r) for r in rows]
+    for r in mixed[3:]:
+        r[col] = {"Yes": "1", "No": "0"}.get(r[col], r[col])
+    status = rows[0].index("Status")
+    row = next(k for k, r in enumerate(mixed) if k >= 3 and r[col] == "1" and r[status] != "Survey Preview")
+    mixed[row][col] = "2"
+    message = _error(_write(tmp_path / "mixed.csv", mixed))
+    assert f"row {row + 1}" in message and '"2" is not Yes or No' in message
