@@ -81,7 +81,8 @@ def _sustained(y: Array, t: Array, start: float) -> NDArray[np.bool_]:
 NOISE_DRAWS = 3
 
 
-def instability_gain(p: RigParams, effects: EffectSet, *, duration: float = 2.0) -> float:
+def instability_gain(p: RigParams, effects: EffectSet, *, duration: float = 2.0,
+                     run_simulator: RunSimulator | None = None) -> float:
     """The P gain (volts convention, on a 0.5 grid) at which the rig's step response first
     oscillates without decaying: the gain raised slowly until the system goes unstable, as
     students do. The search sees the rig's noise (:data:`NOISE_DRAWS` draws from fixed seeds, so
@@ -89,10 +90,15 @@ def instability_gain(p: RigParams, effects: EffectSet, *, duration: float = 2.0)
     noise can stop an oscillation that friction barely lets grow, and a student would raise the
     gain further (a gain that lasted under one draw of the noise died out under another 2 times
     in 60 random rigs). If no gain up to 3x the linear critical gain
-    is unstable, that bound is returned."""
+    is unstable, that bound is returned. With ``run_simulator`` (another rig: the benchmark's
+    independent solve_ivp path, its noise included), that rig decides (:func:`_decided_by`): this
+    search's gain is only where it starts."""
     t = np.round(np.arange(0.0, duration + 1e-9, p.sample_time), 9)
     r = np.where(t >= 0.1, INSTABILITY_STEP, 0.0)
     scale = 1.0 if p.feedback == "volts" else p.Kpot
+    if run_simulator is not None:
+        guess = instability_gain(p, effects, duration=duration)
+        return _decided_by(run_simulator, p, t, r, guess, step=float(max(1.0, np.ceil(0.05 * guess))))
 
     def first_unstable(gains: Array) -> float | None:
         sustained = np.ones(gains.size, dtype=bool)
@@ -112,18 +118,41 @@ def instability_gain(p: RigParams, effects: EffectSet, *, duration: float = 2.0)
     return first_unstable(np.arange(max(first - step + 0.5, 0.5), first, 0.5)) or first
 
 
-def paper_runs(p: RigParams, effects: EffectSet | None = None) -> list[RunPlan]:
+def _decided_by(sim: RunSimulator, p: RigParams, t: Array, r: Array, guess: float, *, step: float) -> float:
+    """The first gain (volts convention) on the 0.5 grid at which ``sim``'s rig oscillates without decaying under
+    every one of :data:`NOISE_DRAWS` noise draws, searched from ``guess``: down in steps of 0.5 while the gain below
+    still lasts; else up in coarse ``step`` until one lasts (at most to 3x ``guess``, returned if none does), then
+    back down in steps of 0.5."""
+    scale = 1.0 if p.feedback == "volts" else p.Kpot
+
+    def lasts(k: float) -> bool:
+        return all(_sustained(sim(p, Controller(k * scale), t, r, np.random.default_rng(seed))[0][None, :], t, 0.1)[0]
+                   for seed in range(NOISE_DRAWS))
+
+    k = guess
+    if not lasts(k):
+        while not lasts(k := k + step):
+            if k >= 3.0 * guess:
+                return k
+    while k - 0.5 >= 0.5 and lasts(k - 0.5):
+        k -= 0.5
+    return k
+
+
+def paper_runs(p: RigParams, effects: EffectSet | None = None, *,
+               run_simulator: RunSimulator | None = None) -> list[RunPlan]:
     """The paper's procedure: steps at Kp = 10, 25, 46, the instability run, and P and PI ramps.
     Gains are in the volts convention, scaled by 1/Kpot for the inches convention. The
     instability gain is found on the rig (:func:`instability_gain`) when ``effects`` are given,
     else it is the sampled linear loop's critical gain plus 1.5 % (with a 0.05 in step; the rig's
-    instability run steps 0.2 in, as Coulomb friction damps small oscillations out)."""
+    instability run steps 0.2 in, as Coulomb friction damps small oscillations out); ``run_simulator``
+    decides it on another rig (see :func:`instability_gain`)."""
     scale = 1.0 if p.feedback == "volts" else p.Kpot
     if effects is None:
         k_crit = zloop.critical_gain(p) / scale  # native convention -> volts convention
         k_unstable, step = float(np.ceil(k_crit * 1.015 * 2) / 2), 0.05
     else:
-        k_unstable, step = instability_gain(p, effects), INSTABILITY_STEP
+        k_unstable, step = instability_gain(p, effects, run_simulator=run_simulator), INSTABILITY_STEP
     return [
         RunPlan("step_kp10", "step", Controller(10 * scale)),
         RunPlan("step_kp25", "step", Controller(25 * scale)),

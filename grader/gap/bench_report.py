@@ -52,9 +52,10 @@ def _confusion(cases: list[Case]) -> str:
 def _pairs(pairs: list[Case]) -> str:
     if not pairs:
         return ""
-    lines = ["two-effect datasets: named (verdict + second effect), share of the shrink not kept per effect"]
+    lines = ["two-effect datasets: named (verdict + second effect; ~ a lookalike not told apart)"]
     for c in pairs:
-        lines.append(f"  {'ok  ' if c.right else 'MISS'} {c.truth:48s} -> {'+'.join(c.named)}")
+        lines.append(f"  {'ok  ' if c.right else 'MISS'} {c.truth:48s} -> {'+'.join(c.named)}"
+                     f"{''.join(f' ~{t}' for t in c.ties)}")
     return "\n".join(lines)
 
 
@@ -71,6 +72,9 @@ def _headline(singles: list[Case], pairs: list[Case], cli: list[float], cores: i
         f"diagnoses that failed: {sum(c.verdict == ERROR for c in every)}",
         f"strict top-1 (one effect or none): {_pct(_mean([c.right for c in singles]))}   strict top-2: {_pct(top2)}",
         f"false positives on none: {_pct(_mean(false_pos))} ({len(nones)} datasets)",
+        f"named exactly but not told apart from a lookalike (counted as misses): "
+        f"{sum(c.named_exactly and not c.right for c in singles)} of one effect or none, "
+        f"{sum(c.named_exactly and not c.right for c in pairs)} of two",
         f"two effects, both named: {_pct(_mean([c.right for c in pairs]))}   "
         f"verdict one of the two: {_pct(first_right)} ({len(pairs)} datasets)",
         f"95 % Wilson intervals of these rates (their sampling error): strict top-1 "
@@ -90,13 +94,13 @@ def _params(cases: list[Case]) -> str:
     """Per effect parameter: median relative error and 95 % interval coverage, over the verdicts that name
     exactly the withheld effects (an interval holds under its model; a parameter fitted beside a missed
     effect absorbs it)."""
-    if not any(c.right and c.params for c in cases):
+    if not any(c.named_exactly and c.params for c in cases):
         return ""
     lines = ["fitted parameter vs truth (verdicts naming exactly the withheld effects): median |relative error|, "
              "95 % interval coverage"]
     by: dict[str, list[tuple[float, float, float, float]]] = {}
     for c in cases:
-        if c.right:
+        if c.named_exactly:
             for k, v in c.params.items():
                 by.setdefault(k, []).append(v)
     covered = []

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from grader.gap.bench import ERROR, BenchConfig, BenchResult, Case, coverage, effect_params, make_case_dataset, plan, \
-    random_station, step_demand
+from grader.gap.bench import ERROR, GENERATOR, BenchConfig, BenchResult, Case, coverage, effect_params, \
+    make_case_dataset, plan, random_station, step_demand
 from grader.gap.candidates import NONE
 from grader.gap.summary import combination
 from grader.model.effects import EffectSet
@@ -60,7 +60,7 @@ def tasks(cfg: BenchConfig, root: Path) -> list[Task]:
 
 
 def _reusable(task: Task) -> bool:
-    """Whether the task's dataset is already in the work folder, made from the same draw."""
+    """Whether the task's dataset is already in the work folder, made from the same draw by this generator."""
     truth_file = task.folder.parent / f"{task.folder.name}.truth.json"
     if not (task.folder / "manifest.json").is_file() or not truth_file.is_file():
         return False
@@ -69,7 +69,7 @@ def _reusable(task: Task) -> bool:
     except (OSError, ValueError):
         return False
     kept_truth = EffectSet.from_quantities(kept.get("effects")).without("sensor_noise")
-    return kept.get("station") == task.station.model_dump(mode="json") and \
+    return kept.get("generator") == GENERATOR and kept.get("station") == task.station.model_dump(mode="json") and \
         kept_truth.to_quantities() == task.truth.to_quantities()
 
 
@@ -90,7 +90,7 @@ def run_task(task: Task, parallel: bool = True) -> Case:
     seconds = time.perf_counter() - t0
     named = combination(d) or d.candidates[0]  # the model with every effect named from the runs, as the summary says
     return Case(task.label, task.strength, d.verdict.effect, d.verdict.second_effect, d.verdict.runner_up,
-                tuple(d.verdict.indistinguishable_from), named.shrink, seconds, coverage(d, task.truth))
+                tuple(d.verdict.indistinguishable_from + d.verdict.second_indistinguishable_from), named.shrink, seconds, coverage(d, task.truth))
 
 
 def _one_core(task: Task) -> Case:
@@ -141,7 +141,7 @@ def run_benchmark(cfg: BenchConfig, *, progress: bool = True) -> BenchResult:
             result.cases.append(case)
             if progress:
                 print(f"[{k + 1}] {'ok ' if case.right else 'MISS'} {task.label} {json.dumps(task.truth.to_quantities())}"
-                      f" -> {'+'.join(case.named)} (shrink {case.shrink:.2f}, {case.seconds:.1f} s)", flush=True)
+                      f" -> {'+'.join(case.named)}{''.join(f' ~{t}' for t in case.ties)} (shrink {case.shrink:.2f}, {case.seconds:.1f} s)", flush=True)
         if cfg.cli_sample > 0:
             pick = np.unique(np.linspace(0, len(todo) - 1, min(cfg.cli_sample, len(todo))).round().astype(int))
             result.cli_seconds = time_cli([todo[i].folder for i in pick])

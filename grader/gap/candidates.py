@@ -42,6 +42,13 @@ GRID_POINTS = 5
 #: The linear model's parameters re-fitted with every candidate (log ratios lead θ), with their units.
 LINEAR: tuple[tuple[str, str], ...] = (("beta_over_Vt", "psi/in**3"), ("Kce", "in**3/s/psi"), ("Kq", "in**3/s/mA"))
 N_LINEAR = len(LINEAR)
+#: Most β/Vt [psi/in³] a fit tries: twenty times the top of the realistic rig space (docs/reference/rig-space.md),
+#: as far as the span lets a fit around a realistic baseline go. Where the runs cannot pin β/Vt (no oscillation to
+#: read), fits ran up to 270 times the top: such a model is no rig, and its stiffness cost 200-800 RK4 substeps per
+#: sample (40 s for a diagnosis).
+LINEAR_CEILING = {"beta_over_Vt": 1.6e6}
+#: How far (log ratio) a linear parameter may move from the baseline's: a factor 20.
+LINEAR_SPAN = 3.0
 
 
 @dataclass(frozen=True)
@@ -126,10 +133,14 @@ class Candidate:
         log_step, mag_step = SWITCHING_STEPS if SWITCHING & set(self.names) else SMOOTH_STEPS
         return np.array([log_step] * N_LINEAR + [mag_step] * len(self.params))
 
-    def bounds(self) -> tuple[Array, Array]:
-        """(lower, upper) of θ; the log ratios are kept within a factor 20."""
-        lo = [-3.0] * N_LINEAR + [p.lo / p.scale for p in self.params]
-        hi = [3.0] * N_LINEAR + [p.hi / p.scale for p in self.params]
+    def bounds(self, base: RigParams | None = None) -> tuple[Array, Array]:
+        """(lower, upper) of θ; the log ratios are kept within :data:`LINEAR_SPAN`, and around ``base`` also below
+        :data:`LINEAR_CEILING` (never below the baseline's own value)."""
+        top = [LINEAR_SPAN if base is None or name not in LINEAR_CEILING else
+               float(np.clip(np.log(LINEAR_CEILING[name] / getattr(base, name)), 0.0, LINEAR_SPAN))
+               for name, _ in LINEAR]
+        lo = [-LINEAR_SPAN] * N_LINEAR + [p.lo / p.scale for p in self.params]
+        hi = top + [p.hi / p.scale for p in self.params]
         return np.array(lo), np.array(hi)
 
     def values(self, theta: Array) -> dict[str, dict[str, float]]:

@@ -93,7 +93,8 @@ def _add(verdict: Verdict, name: str, text: str) -> Verdict:
     this way has no margin over the runs' runner-up (the runs alone rank it with ``none``)."""
     if verdict.effect == NONE:
         return verdict.model_copy(update={"effect": name, "shares": {name: 1.0}, "explanation": text, "margin": 0.0,
-                                          "runner_up": NONE, "indistinguishable_from": [], "separating_test": None})
+                                          "runner_up": NONE, "indistinguishable_from": [], "separating_test": None,
+                                          "not_ruled_out": []})
     if verdict.second_effect is None:  # no share of the held-out shrink: it is not fitted to the runs
         return verdict.model_copy(update={"second_effect": name, "shares": {**verdict.shares, name: 0.0},
                                           "explanation": f"{verdict.explanation}; and {text}"})
@@ -242,17 +243,17 @@ def names_viscous(z: float, explained: bool) -> bool:
 
 
 def viscous_unexcluded(verdict: Verdict, fr: Friction | None, lg: LoopGainInfo | None) -> Verdict:
-    """A ``none`` verdict lists viscous friction as indistinguishable when no static test rules out a visible B:
+    """A ``none`` verdict lists viscous friction as not ruled out when no static test rules out a visible B:
     no friction test, and no flow test or a loop gain whose B interval reaches :data:`VISIBLE` of the range's top."""
     top = EFFECTS["viscous_friction"].params[0].typical[1]
-    if verdict.effect != NONE or fr is not None or "viscous_friction" in verdict.indistinguishable_from:
+    if verdict.effect != NONE or fr is not None or "viscous_friction" in verdict.not_ruled_out:
         return verdict
     if lg is not None and (lg.viscous_B.interval or (0.0, 0.0))[1] < VISIBLE * top:
         return verdict
     upto = "" if lg is None or lg.viscous_B.interval is None else f" up to B = {lg.viscous_B.interval[1]:.3g} lbf·s/in"
     test = separating_test(NONE, ["viscous_friction"])
     return verdict.model_copy(update={
-        "indistinguishable_from": [*verdict.indistinguishable_from, "viscous_friction"],
+        "not_ruled_out": [*verdict.not_ruled_out, "viscous_friction"],
         "separating_test": verdict.separating_test or test,
         "explanation": f"{verdict.explanation}; viscous friction{upto} cannot be ruled out without a friction test "
                        f"(in the closed loop it acts as a larger Kce): {test} would show it"})

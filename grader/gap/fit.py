@@ -60,9 +60,8 @@ class FitState:
         return self.candidate.n_theta if self.n_free is None else self.n_free
 
 
-def _probe(c: Candidate, theta: Array, n_free: int) -> list[Array]:
-    """θ moved by one forward (or, at the upper bound, backward) step in each free coordinate."""
-    hi = c.bounds()[1]
+def _probe(c: Candidate, theta: Array, n_free: int, hi: Array) -> list[Array]:
+    """θ moved by one forward (or, at the upper bound ``hi``, backward) step in each free coordinate."""
     out = []
     for j, h in enumerate(c.steps()[:n_free]):
         t = theta.copy()
@@ -71,9 +70,8 @@ def _probe(c: Candidate, theta: Array, n_free: int) -> list[Array]:
     return out
 
 
-def _jacobian(c: Candidate, theta: Array, base: Array, probes: Sequence[Array]) -> Array:
-    """Columns for the free coordinates (as many as ``probes``)."""
-    hi = c.bounds()[1]
+def _jacobian(c: Candidate, theta: Array, base: Array, probes: Sequence[Array], hi: Array) -> Array:
+    """Columns for the free coordinates (as many as ``probes``), probed as :func:`_probe` with ``hi``."""
     cols = [(r - base) / (h if theta[j] + h <= hi[j] else -h) for j, (h, r) in enumerate(zip(c.steps(), probes))]
     return np.stack(cols, axis=1)
 
@@ -131,20 +129,24 @@ class BatchFitter:
     def rebase(self, states: Sequence[FitState]) -> list[FitState]:
         """The same θ evaluated on this fitter's runs: residual and Jacobian in one round."""
         every = tuple(range(len(self.runs)))
-        jobs = [(s.candidate, t, every) for s in states for t in [s.theta, *_probe(s.candidate, s.theta, s.free)]]
+        jobs = [(s.candidate, t, every) for s in states
+                for t in [s.theta, *_probe(s.candidate, s.theta, s.free, self._top(s))]]
         res, out, pos = self.residuals(jobs), [], 0
         for s in states:
             n = s.free
-            jac = _jacobian(s.candidate, s.theta, res[pos], res[pos + 1:pos + 1 + n])
+            jac = _jacobian(s.candidate, s.theta, res[pos], res[pos + 1:pos + 1 + n], self._top(s))
             out.append(replace(s, runs=every, res=res[pos], jac=jac, done=False))
             pos += n + 1
         return out
 
-    @staticmethod
-    def _trials(s: FitState, dampings: Sequence[float]) -> list[tuple[float, Array]]:
+    def _top(self, s: FitState) -> Array:
+        """Upper bounds of ``s``'s θ around this fitter's baseline."""
+        return s.candidate.bounds(self.base)[1]
+
+    def _trials(self, s: FitState, dampings: Sequence[float]) -> list[tuple[float, Array]]:
         """(λ, θ) of the damped Gauss–Newton steps from ``s``, kept within the bounds."""
         assert s.jac is not None
-        lo, hi = s.candidate.bounds()
+        lo, hi = s.candidate.bounds(self.base)
         lams = s.lam * np.asarray(dampings, dtype=float)
         steps = damped_steps(np.ascontiguousarray(s.jac), s.res, lams)
         out = []
@@ -158,12 +160,13 @@ class BatchFitter:
         """Fill in the Jacobian of ``states[k]`` at its θ for each k of ``which`` (one batched evaluation);
         ``halve_damping`` also halves λ, as an accepted step does."""
         jobs = [(states[k].candidate, t, states[k].runs) for k in which
-                for t in _probe(states[k].candidate, states[k].theta, states[k].free)]
+                for t in _probe(states[k].candidate, states[k].theta, states[k].free, self._top(states[k]))]
         res, pos = self.residuals(jobs), 0
         for k in which:
             s = states[k]
             lam = max(s.lam * 0.5, 1e-6) if halve_damping else s.lam
-            states[k] = replace(s, jac=_jacobian(s.candidate, s.theta, s.res, res[pos:pos + s.free]), lam=lam)
+            jac = _jacobian(s.candidate, s.theta, s.res, res[pos:pos + s.free], self._top(s))
+            states[k] = replace(s, jac=jac, lam=lam)
             pos += s.free
 
     def round(self, states: Sequence[FitState], dampings: Sequence[float], *, jacobian: bool = True) -> list[FitState]:

@@ -119,13 +119,18 @@ class Verdict(_Frozen):
     shares: dict[str, float] = Field(default_factory=dict, description=(
         "each named effect's share of the held-out shrink (sums to 1; where the replay named the second effect, of "
         "what the pair explains of the replayed runs' sum of squares)"))
-    separating_test: str | None = Field(None, description="the extra test that would separate the verdict from a candidate the data cannot tell apart from it")
+    separating_test: str | None = Field(None, description="the extra test that would separate the verdict from a candidate the data cannot tell apart from it (for a 'none' verdict, or show an effect it cannot rule out)")
     explanation: str
     second_indistinguishable_from: list[str] = Field(
         default_factory=list, description="effects the data cannot tell apart from second_effect: each also explains "
                                           "clearly more on top of the verdict, and scores or fits as well")
     second_separating_test: str | None = Field(None, description="the extra test that would separate second_effect "
                                                                  "from the first of second_indistinguishable_from")
+    not_ruled_out: list[str] = Field(
+        default_factory=list, description="effects a 'none' verdict cannot rule out: below what these data can show "
+                                          "(up to the size the explanation gives); separating_test names the test "
+                                          "that would show them. Unlike indistinguishable_from, no lookalike of a "
+                                          "named effect")
 
 
 class QuantizationInfo(_Frozen):

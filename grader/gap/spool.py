@@ -45,7 +45,7 @@ def fit_against_delay(objs: Sequence[RunObjective], base: RigParams, delay: FitS
     c = second_order(spool.candidate)
     p_delay, p_tau = delay.candidate.params[0], c.params[0]
     tau = float(delay.theta[N_LINEAR]) * p_delay.scale / (2.0 * SECOND_ORDER["zeta"])
-    lo, hi = c.bounds()
+    lo, hi = c.bounds(base)
     theta = np.clip(np.concatenate([delay.theta[:N_LINEAR], [tau / p_tau.scale]]), lo, hi)
     start = FitState(c, spool.runs, theta, spool.res)  # a fresh fit: the residual is recomputed there
     return refit(objs, base, start, executor=executor)

@@ -144,6 +144,12 @@ def _which(d: Diagnosis, best: Candidate) -> str:
     if v.indistinguishable_from:
         others = ", ".join(_with_params(d, e) for e in v.indistinguishable_from)
         text += f" The data cannot tell it apart from: {others}; {v.separating_test} would separate them."
+    if v.not_ruled_out:
+        lg = d.loop_gain
+        upto = "" if lg is None or lg.viscous_B.interval is None else \
+            f" up to B = {show(lg.viscous_B.interval[1], 'lbf*s/in')}"
+        text += (f" It cannot rule out {', '.join(effect_name(e) for e in v.not_ruled_out)}{upto} (in the closed loop "
+                 f"it acts as a larger Kce); {v.separating_test} would show it.")
     combo = combination(d)
     if v.second_effect == "viscous_friction" and combo is None or v.effect == "viscous_friction":
         text += f" {_viscous(d)}"

@@ -57,7 +57,8 @@ def test_a_diagnosis_is_the_same_bytes_under_every_blas_core_type(make: MakeData
             assert data == first[name], f"OPENBLAS_CORETYPE={core} wrote a different {name}"
 
 
-#: Run A's dataset 163 (seed 300): a random station of the benchmark, the orifice law withheld.
+#: Run A's dataset 163 (seed 300): a random station of the benchmark, the orifice law withheld (made by the
+#: current generator, whose instability gain the solve_ivp rig decides).
 GENERATE = """
 import sys
 from pathlib import Path

@@ -139,7 +139,7 @@ def _seed_300_plan() -> tuple[Task, ...]:
 def _seed_300(index: int, tmp_path: Path) -> tuple[str, Path]:
     task = _seed_300_plan()[index]
     folder = tmp_path / task.folder.name
-    make_case_dataset(task.station, task.truth, folder, task.seed, friction_test=False)
+    make_case_dataset(task.station, task.truth, folder, task.seed, friction_test=False, generator=1)
     return task.label, folder
 
 

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from grader.gap.bench import ERROR, BenchConfig
 from grader.gap.bench_report import render
+from grader.gap.bench import GENERATOR
 from grader.gap.bench_run import _reusable, run_task, tasks, time_cli
 from grader.gap.candidates import NOT_FROM_RUNS, make_candidates
 from grader.gap.evidence import viscous_unexcluded
@@ -67,12 +68,15 @@ def _loop_gain(b_hi: float) -> LoopGainInfo:
 
 
 def test_without_a_friction_test_a_none_verdict_says_viscous_friction_is_not_ruled_out() -> None:
+    """A detection limit, not a lookalike: listed in not_ruled_out, so that a benchmark counting 'cannot separate'
+    as a miss does not count a right 'none' as one."""
     v = viscous_unexcluded(_none_verdict(), None, _loop_gain(0.6))
-    assert v.indistinguishable_from == ["viscous_friction"] and "friction test" in (v.separating_test or "")
+    assert v.not_ruled_out == ["viscous_friction"] and "friction test" in (v.separating_test or "")
+    assert v.indistinguishable_from == []
     assert "up to B = 0.6" in v.explanation
-    assert viscous_unexcluded(_none_verdict(), None, None).indistinguishable_from == ["viscous_friction"]
+    assert viscous_unexcluded(_none_verdict(), None, None).not_ruled_out == ["viscous_friction"]
     # a loop gain that rules out any visible B, or an effect named: nothing to add
-    assert viscous_unexcluded(_none_verdict(), None, _loop_gain(0.01)).indistinguishable_from == []
+    assert viscous_unexcluded(_none_verdict(), None, _loop_gain(0.01)).not_ruled_out == []
     named = _none_verdict().model_copy(update={"effect": "coulomb_friction"})
     assert viscous_unexcluded(named, None, None) == named
 
@@ -90,6 +94,9 @@ def test_the_benchmark_plan_is_the_seeds_and_a_dataset_is_reused_only_when_it_is
     truth = task.folder.parent / f"{task.folder.name}.truth.json"
     kept = {"effects": task.truth.to_quantities(), "station": task.station.model_dump(mode="json")}
     truth.write_text(json.dumps(kept), encoding="utf-8")
+    assert not _reusable(task)  # an earlier generator's dataset (its instability gain chosen on the engine)
+    kept["generator"] = GENERATOR
+    truth.write_text(json.dumps(kept), encoding="utf-8")
     assert _reusable(task)
     kept["effects"] = {"coulomb_friction": {"Fc": "9 lbf"}}
     truth.write_text(json.dumps(kept), encoding="utf-8")
@@ -101,7 +108,8 @@ def test_a_benchmark_dataset_whose_diagnosis_fails_is_a_counted_miss_not_the_end
     task = tasks(cfg, tmp_path)[0]
     task.folder.mkdir()
     (task.folder / "manifest.json").write_text("{}", encoding="utf-8")  # kept, but no dataset
-    kept = {"effects": task.truth.to_quantities(), "station": task.station.model_dump(mode="json")}
+    kept = {"effects": task.truth.to_quantities(), "station": task.station.model_dump(mode="json"),
+            "generator": GENERATOR}
     (tmp_path / f"{task.folder.name}.truth.json").write_text(json.dumps(kept), encoding="utf-8")
     case = run_task(task, parallel=False)
     assert case.verdict == ERROR and not case.right

@@ -33,8 +33,9 @@ from grader.model.rig_ivp import simulate_rig_ivp
 from grader.stations import load_station
 
 
-def _case(truth: str, verdict: str, second: str | None = None, runner_up: str | None = None) -> Case:
-    return Case(truth, None, verdict, second, runner_up, (), 0.8, 1.0, {})
+def _case(truth: str, verdict: str, second: str | None = None, runner_up: str | None = None,
+          ties: tuple[str, ...] = ()) -> Case:
+    return Case(truth, None, verdict, second, runner_up, ties, 0.8, 1.0, {})
 
 
 @pytest.mark.parametrize(("truth", "verdict", "second", "right"), [
@@ -50,6 +51,19 @@ def _case(truth: str, verdict: str, second: str | None = None, runner_up: str | 
 def test_a_verdict_is_right_only_when_it_names_exactly_the_withheld_effects(
         truth: str, verdict: str, second: str | None, right: bool) -> None:
     assert _case(truth, verdict, second).right is right
+
+
+def test_cannot_separate_counts_as_a_miss_and_is_reported_apart() -> None:
+    """The issue's rule: a verdict the diagnosis cannot tell from a lookalike is a miss even when it is the truth;
+    its parameters still count towards coverage (the fit named exactly the withheld effects)."""
+    hedged = _case("valve_dynamics", "valve_dynamics", ties=("sampling_delay",))
+    hedged_pair = _case("coulomb_friction+sampling_delay", "coulomb_friction", "sampling_delay", ties=("valve_dynamics",))
+    assert hedged.named_exactly and not hedged.right
+    assert hedged_pair.named_exactly and not hedged_pair.right
+    text = render([hedged, _case("none", "none"), hedged_pair])
+    assert "strict top-1 (one effect or none): 50.0 %" in text
+    assert "named exactly but not told apart from a lookalike (counted as misses): 1 of one effect or none, 1 of two" in text
+    assert "MISS coulomb_friction+sampling_delay" in text and "coulomb_friction+sampling_delay ~valve_dynamics" in text
 
 
 def test_report_counts_strict_top1_top2_and_false_positives_on_none() -> None:
@@ -188,7 +202,7 @@ def _seed_300_dataset(index: int, tmp_path: Path) -> tuple[str, Path]:
     ``tmp_path``: its withheld effects and its folder."""
     task = _seed_300_plan()[index]
     task = replace(task, folder=tmp_path / task.folder.name)
-    make_case_dataset(task.station, task.truth, task.folder, task.seed, friction_test=False)
+    make_case_dataset(task.station, task.truth, task.folder, task.seed, friction_test=False, generator=1)
     return task.label, task.folder
 
 

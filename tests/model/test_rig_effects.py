@@ -130,6 +130,26 @@ def test_delay_lowers_the_gain_at_which_oscillation_starts(p: RigParams) -> None
     assert -0.5 <= with_delay - _critical_gain_with_delay(p, 2) <= 1.0
 
 
+def _threshold_rig(critical: float, calls: list[float]):  # noqa: ANN202
+    """A run simulator whose loop oscillates without decaying from the P gain ``critical`` [V/V] up (a growing
+    sine above it, a decaying one below), recording the gains it is run at."""
+    def run(p: RigParams, c: Controller, t: np.ndarray, r: np.ndarray, rng: np.random.Generator):  # noqa: ANN202
+        calls.append(c.Kp)
+        growth = 1.0 if c.Kp >= critical else -3.0
+        return 0.05 * np.exp(growth * t) * np.sin(2 * np.pi * 8 * t) + 0.001 * rng.normal(size=t.size), 0 * t
+    return run
+
+
+@pytest.mark.parametrize("critical", [40.0, 55.5, 56.0, 63.5, 80.0])
+def test_another_rig_decides_the_instability_gain_from_the_engines_proposal(p: RigParams, critical: float) -> None:
+    """The benchmark's instability gain is the independent rig's: the first on the 0.5 grid at which it lasts
+    under every noise draw, whether the engine's proposal (56 on this station) lies above or below it."""
+    calls: list[float] = []
+    k = instability_gain(p, EffectSet(), run_simulator=_threshold_rig(critical, calls))
+    assert k == critical
+    assert {critical, critical - 0.5} <= set(calls)  # it saw the gain last and the one below not
+
+
 def test_deadband_stops_the_loop_where_the_current_enters_the_overlap(p: RigParams) -> None:
     _, r, y, _ = _run(p, 10, ["valve_deadband:width=2mA"], end=1.5)
     edge = 1.0 / (p.Kamp * p.Kpot * 10)  # error at which i = width/2
