@@ -27,6 +27,7 @@ import numpy as np
 from grader.gap.bench import ERROR, GENERATOR, BenchConfig, BenchResult, Case, coverage, effect_params, \
     make_case_dataset, plan, random_station, step_demand
 from grader.gap.candidates import NONE
+from grader.gap.schema import Verdict
 from grader.gap.summary import combination
 from grader.model.effects import EffectSet
 from grader.stations import Station, load_station
@@ -90,7 +91,14 @@ def run_task(task: Task, parallel: bool = True) -> Case:
     seconds = time.perf_counter() - t0
     named = combination(d) or d.candidates[0]  # the model with every effect named from the runs, as the summary says
     return Case(task.label, task.strength, d.verdict.effect, d.verdict.second_effect, d.verdict.runner_up,
-                tuple(d.verdict.indistinguishable_from + d.verdict.second_indistinguishable_from), named.shrink, seconds, coverage(d, task.truth))
+                _ties(d.verdict), named.shrink, seconds, coverage(d, task.truth))
+
+
+def _ties(v: Verdict) -> tuple[str, ...]:
+    """The lookalikes the verdict and its second effect could not be told from, but those it names itself (a
+    Coulomb verdict not told from the deadband it names as its second effect names the same two)."""
+    named = {v.effect, v.second_effect}
+    return tuple(e for e in [*v.indistinguishable_from, *v.second_indistinguishable_from] if e not in named)
 
 
 def _one_core(task: Task) -> Case:

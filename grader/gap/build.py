@@ -123,7 +123,8 @@ def quantization_info(quant: Quantization | None) -> QuantizationInfo | None:
     return QuantizationInfo(adc_step=value(quant.step, "in"), share_of_step=r6(quant.share),
                             share_of_readoff=readoff,
                             bits=r6(quant.bits), limit_cycle=quant.limit_cycle, matters=quant.matters,
-                            steady_state_error_band=value(quant.step / 2, "in"), print_precision=quant.printed)
+                            steady_state_error_band=value(quant.step / 2, "in"), print_precision=quant.printed,
+                            dithered=quant.dithered)
 
 
 def critical_gain(b: Baseline) -> float | None:

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from grader import __version__
 from grader.datasets import Dataset, load
 from grader.gap import baseline as baseline_mod
-from grader.gap import build, evidence
+from grader.gap import build, dfilter, evidence
 from grader.gap import noise as noise_mod
 from grader.gap import quantization as quant_mod
 from grader.gap import replay, spool
@@ -270,7 +270,10 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     ds = load(dataset_dir)
     T = ds.given["sample_time"]
     ds, runs, set_aside = prepare_runs(ds, T)
-    implied = check_gains(runs, _reference_kfb(ds), T)
+    k_fb = _reference_kfb(ds)
+    ds, runs, filtered, unchecked = dfilter.set_aside(ds, runs, k_fb, T)
+    set_aside += filtered
+    implied = check_gains(runs, k_fb, T, unchecked)
     base = baseline_mod.choose(ds, runs, key=key, implied_kfb=implied)
     noise = noise_mod.estimate(runs)
     quant = quant_mod.assess(runs, noise, base.params.Kpot)

@@ -1,9 +1,11 @@
 """Does a quantising ADC matter? The sensor_quantization verdict.
 
 The noise floor (:mod:`grader.gap.noise`) finds the readings' lattice step q [in]. It matters
-to the students when q is at least :data:`STEP_SHARE` of the step command or of the smallest error
-they read off at the end of a step or ramp run (steady-state and ramp errors are then read off in
-counts of q), or when the readings at the end of
+to the students when q is at least :data:`STEP_SHARE` of the step command or, where the reading noise
+does not dither it (below), of the smallest error they read off at the end of a step or ramp run
+(steady-state and ramp errors are then read off in counts of q; dithered, the readings averaged over
+the run's end resolve the error below q, and a 14- to 16-bit board, at 1 % of the ramp error, was
+named on an independent simulator's rigs where it mattered to nothing), or when the readings at the end of
 a step run hold a limit cycle of a few counts that noise does not explain (white-noise RMS
 below :data:`QUIET` q). Then the diagnosis names ``sensor_quantization``, estimates the bits
 of a ±10 V board from q and the pot gain Kpot (LSB = q·Kpot = 20 V / 2**bits) and states what
@@ -54,12 +56,15 @@ class Quantization:
     readoff_share: float = float("nan")
     #: the lattice is the file's print precision, finer than the reading noise (module docstring)
     printed: bool = False
+    #: the reading noise dithers the lattice (module docstring): an error read off a run's end resolves below q
+    dithered: bool = False
 
     @property
     def matters(self) -> bool:
         if self.printed:
             return False
-        return self.share >= STEP_SHARE or self.readoff_share >= STEP_SHARE or self.limit_cycle
+        readoff = self.readoff_share >= STEP_SHARE and not self.dithered
+        return self.share >= STEP_SHARE or readoff or self.limit_cycle
 
     def text(self) -> str:
         """One sentence for the notes or the verdict."""
@@ -71,7 +76,9 @@ class Quantization:
             return (f"the readings are printed in steps of {self.step:.3g} in, finer than their noise: the file's print "
                     "precision, not an ADC, and part of the noise floor")
         if not self.matters:
-            return f"{core}: part of the noise floor"
+            dither = (": the reading noise dithers it, so an error averaged over a run's end resolves below one step"
+                      if self.dithered and self.readoff_share >= STEP_SHARE else "")
+            return f"{core}{dither}: part of the noise floor"
         cycle = "; the step runs end in a limit cycle of a few counts" if self.limit_cycle else ""
         return (f"{core}{cycle}: a steady-state error is read to ±{self.step / 2:.3g} in at best, and a P loop "
                 f"may settle anywhere within ±{self.step / 2:.3g} in of the set-point")
@@ -102,7 +109,13 @@ def _printed(runs: Sequence[GapRun], q: float, sigma: float, bits: float) -> boo
         return False
     y = np.concatenate([r.y for r in runs]) / q
     on = float(np.mean(np.abs(y - np.round(y)) < 0.02))
-    return on >= 0.95 and sigma**2 - q**2 / 12.0 >= (DITHER * q) ** 2
+    return on >= 0.95 and _dithers(q, sigma)
+
+
+def _dithers(q: float, sigma: float) -> bool:
+    """Whether white noise dithers a lattice of step ``q`` [in]: the readings' RMS ``sigma`` [in] less the lattice's
+    own q/√12 at least :data:`DITHER` q."""
+    return sigma**2 - q**2 / 12.0 >= (DITHER * q) ** 2
 
 
 def assess(runs: Sequence[GapRun], noise: Noise, kpot: float) -> Quantization | None:
@@ -115,4 +128,4 @@ def assess(runs: Sequence[GapRun], noise: Noise, kpot: float) -> Quantization | 
     bits = math.log2(ADC_SPAN / (q * kpot)) if q * kpot > 0 else float("nan")
     white = noise.sigma
     return Quantization(q, q / command, bits, any(_limit_cycle(r, q, white) for r in steps),
-                        q / _readoff_error(runs, q, white), _printed(runs, q, white, bits))
+                        q / _readoff_error(runs, q, white), _printed(runs, q, white, bits), _dithers(q, white))

@@ -209,6 +209,12 @@ def _seen(run: GapRun, T: float) -> tuple[Array, float] | None:
     return y, k
 
 
+def seen_reading(run: GapRun, T: float) -> Array | None:
+    """The reading the controller saw (:func:`_seen`), or None without u."""
+    seen = _seen(run, T)
+    return None if seen is None else seen[0]
+
+
 def controller_gain(run: GapRun, T: float) -> float | None:
     """The k_fb the recorded u implies (:func:`implied_feedback_gain`) from the reading the controller saw
     (:func:`_seen`)."""
@@ -301,10 +307,10 @@ def gain_notes(runs: list[GapRun], k_fb: float | None, T: float) -> list[str]:
     return out
 
 
-def check_gains(runs: list[GapRun], k_fb: float | None, T: float) -> float | None:
+def check_gains(runs: list[GapRun], k_fb: float | None, T: float, skip: frozenset[str] = frozenset()) -> float | None:
     """Raise if a run's recorded u contradicts its manifest gain (:func:`controller_gain`); returns the implied
-    k_fb (median)."""
-    implied = {r.name: controller_gain(r, T) for r in runs}
+    k_fb (median). Runs named in ``skip`` (a filtered derivative, :mod:`grader.gap.dfilter`) are not checked."""
+    implied = {r.name: controller_gain(r, T) for r in runs if r.name not in skip}
     known = {n: v for n, v in implied.items() if v is not None}
     if not known:
         return None

@@ -142,11 +142,13 @@ class QuantizationInfo(_Frozen):
                                                              "at the end of a step or ramp run (None: no error clearly above 0)")
     bits: float = Field(description="estimated bits of a ±10 V ADC (from the step and Kpot)")
     limit_cycle: bool = Field(description="the step runs end in a limit cycle of a few counts")
-    matters: bool = Field(description="named as an effect: at least 1 % of the step command or of an error read off, or a "
-                                      "limit cycle, and not a print precision")
+    matters: bool = Field(description="named as an effect: at least 1 % of the step command or (not dithered) of an "
+                                      "error read off, or a limit cycle, and not a print precision")
     steady_state_error_band: Value = Field(description="± band round the set-point in which a P loop may settle")
     print_precision: bool = Field(False, description="a decimal step the reading noise dithers: the file's print "
                                                      "precision, not an ADC")
+    dithered: bool = Field(False, description="the reading noise dithers the lattice (white-noise RMS at least "
+                                              "half a step): an error averaged over a run's end resolves below it")
 
 
 class LoopGainInfo(_Frozen):

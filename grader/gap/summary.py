@@ -46,12 +46,18 @@ def show(value: float, unit: str, digits: int = 3) -> str:
 
 
 def param_text(name: str, v: Value) -> str:
-    """``Fc = 4.2 ± 0.3 lbf`` (± half the 95 % interval)."""
-    name = NAMES.get(name, name)
+    """``Fc = 4.2 ± 0.3 lbf`` (± half the 95 % interval), or ``tau = 1.63 ms (95 %: 0.1 to 3.89 ms)`` where the
+    interval is lopsided about the value (its two sides differ by more than a fifth of its half-width: a bound or a log-scale
+    interval); a combination's ``effect.param`` reads ``Coulomb friction Fc``."""
+    effect, _, param = name.rpartition(".")
+    name = f"{effect_name(effect)} {NAMES.get(param, param)}" if effect else NAMES.get(name, name)
     value, label = _display(v.value, v.unit)
     if v.interval is None:
         return f"{name} = {value:.3g}{label}"
-    half = (_display(v.interval[1], v.unit)[0] - _display(v.interval[0], v.unit)[0]) / 2
+    lo, hi = (_display(x, v.unit)[0] for x in v.interval)
+    half = (hi - lo) / 2
+    if abs((hi - value) - (value - lo)) > 0.2 * half:
+        return f"{name} = {value:.3g}{label} (95 %: {lo:.3g} to {hi:.3g}{label})"
     return f"{name} = {value:.3g} ± {half:.2g}{label}"
 
 
@@ -118,6 +124,15 @@ def _viscous(d: Diagnosis) -> str:
             "almost exactly as a larger Kce, so the runs alone cannot name it.")
 
 
+def _resamples(confidence: float) -> str:
+    """The run-bootstrap confidence in words: a share under one half is said to be only that (with no candidate
+    tied, which a verdict that wins on the whole runs can still lack in most resamples)."""
+    if confidence >= 0.5:
+        return f"in {100 * confidence:.0f} % of resamples of the runs it stays the answer"
+    return (f"but only {100 * confidence:.0f} % of resamples of the runs keep it the answer with no candidate tied "
+            "to it: a weak preference")
+
+
 def _which(d: Diagnosis, best: Candidate) -> str:
     v = d.verdict
     if v.effect == "sensor_quantization":
@@ -131,7 +146,7 @@ def _which(d: Diagnosis, best: Candidate) -> str:
         text = f"Which effect: {effect_name(v.effect)}{f' ({params})' if params else ''}."
         if v.margin > 0:
             text += (f" It beats the runner-up, {runner}, by a margin of {v.margin:.2g} (log ratio of held-out "
-                     f"scores); in {100 * v.confidence:.0f} % of resamples of the runs it stays the answer.")
+                     f"scores); {_resamples(v.confidence)}.")
         elif "friction test" in v.explanation and v.effect != "viscous_friction":  # a Coulomb tie broken
             why = next(part for part in v.explanation.split("; ") if "friction test" in part)
             text += f" The runs alone rank it with {runner}; {why}."

@@ -34,6 +34,9 @@ MIN_COUNTS, MIN_STEP_SHARE = 1.0, 0.005
 #: the free-growth window ends where the envelope reaches this share of the saturation amplitude,
 #: or falls to this share of its starting value; it must span :data:`MIN_CYCLES` cycles
 SATURATION_SHARE, FADED, MIN_CYCLES = 0.8, 0.25, 8
+#: fewest readings in the window (a run that ends where the oscillation starts left one, and the six-parameter
+#: fit of a growing sinusoid failed on it, stopping the diagnosis of an 8-bit ADC's dataset)
+MIN_WINDOW = 20
 
 
 def _envelope(t: Array, x: Array, f0: float) -> Array:
@@ -134,6 +137,7 @@ class OscillationFit:
         floor = max(MIN_COUNTS * _quantum(y), MIN_STEP_SHARE * abs(float(np.median(y)) - before))
         win, self.usable_ = _free_window(t, y, env, f0, self.a_sat, floor)
         tw, yw = t[win], y[win]
+        self.usable_ = self.usable_ and tw.size >= MIN_WINDOW  # a window cut short by the run's end
         cycles = (tw[-1] - tw[0]) * f0 if tw.size else 0.0
         self.why_not_ = None if self.usable_ else (
             f"the instability run shows {cycles:.0f} cycles of oscillation above {floor:.2g} in (an ADC count or "

@@ -66,6 +66,19 @@ def test_cannot_separate_counts_as_a_miss_and_is_reported_apart() -> None:
     assert "MISS coulomb_friction+sampling_delay" in text and "coulomb_friction+sampling_delay ~valve_dynamics" in text
 
 
+
+def test_a_lookalike_the_verdict_names_itself_is_no_hedge() -> None:
+    """Coulomb friction not told apart from a deadband, and the deadband named as the second effect: the two named
+    are the two withheld whichever is which."""
+    from grader.gap.bench_run import _ties
+
+    v = Verdict(effect="coulomb_friction", margin=0.5, runner_up="valve_deadband", confidence=0.9,
+                indistinguishable_from=["valve_deadband", "valve_hysteresis"], second_effect="valve_deadband",
+                explanation="")
+    assert _ties(v) == ("valve_hysteresis",)
+    assert _ties(v.model_copy(update={"indistinguishable_from": ["valve_deadband"]})) == ()
+
+
 def test_report_counts_strict_top1_top2_and_false_positives_on_none() -> None:
     cases = [_case("none", "none"), _case("none", "viscous_friction"),
              _case("viscous_friction", "none", runner_up="viscous_friction"), _case("sampling_delay", "sampling_delay"),
