@@ -124,6 +124,12 @@ def _viscous(d: Diagnosis) -> str:
             "almost exactly as a larger Kce, so the runs alone cannot name it.")
 
 
+def _would(test: str | None, does: str) -> str:
+    """"<test> would <does> (<why>)" from a separating test "<test>: <why>"."""
+    head, _, why = (test or "another test").partition(": ")
+    return f"{head} would {does}" + (f" ({why})" if why else "")
+
+
 def _resamples(confidence: float) -> str:
     """The run-bootstrap confidence in words: a share under one half is said to be only that (with no candidate
     tied, which a verdict that wins on the whole runs can still lack in most resamples)."""
@@ -158,13 +164,13 @@ def _which(d: Diagnosis, best: Candidate) -> str:
                      "runs replayed through the controller output the rig recorded, so it is not named.")
     if v.indistinguishable_from:
         others = ", ".join(_with_params(d, e) for e in v.indistinguishable_from)
-        text += f" The data cannot tell it apart from: {others}; {v.separating_test} would separate them."
+        text += f" The data cannot tell it apart from: {others}; {_would(v.separating_test, 'separate them')}."
     if v.not_ruled_out:
         lg = d.loop_gain
         upto = "" if lg is None or lg.viscous_B.interval is None else \
             f" up to B = {show(lg.viscous_B.interval[1], 'lbf*s/in')}"
         text += (f" It cannot rule out {', '.join(effect_name(e) for e in v.not_ruled_out)}{upto} (in the closed loop "
-                 f"it acts as a larger Kce); {v.separating_test} would show it.")
+                 f"it acts as a larger Kce); {_would(v.separating_test, 'show it')}.")
     combo = combination(d)
     if v.second_effect == "viscous_friction" and combo is None or v.effect == "viscous_friction":
         text += f" {_viscous(d)}"
@@ -183,7 +189,7 @@ def _which(d: Diagnosis, best: Candidate) -> str:
         if v.second_indistinguishable_from:
             others = ", ".join(effect_name(e) for e in v.second_indistinguishable_from)
             text += (f" The data cannot tell {effect_name(v.second_effect)} apart from: {others}; "
-                     f"{v.second_separating_test} would separate them.")
+                     f"{_would(v.second_separating_test, 'separate them')}.")
         if nested is None:
             text += _replayed(d, "second_effect", v.second_effect)
     elif v.second_effect == "sensor_quantization":
