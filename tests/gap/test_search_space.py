@@ -136,3 +136,44 @@ def test_a_finished_parallel_benchmark_leaves_no_pool_thread_behind(monkeypatch:
     monkeypatch.setattr(bench_run, "_one_core", _twice)  # forked workers see the module as it is now
     assert list(bench_run._cases(list(range(6)), 2)) == [0, 2, 4, 6, 8, 10]  # type: ignore[arg-type]
     assert not [t for t in threading.enumerate() if isinstance(t, process._ExecutorManagerThread) and t.is_alive()]
+
+
+class _Refit:
+    """A stand-in fitter: a state started from linear coordinates ``theta`` ends at the cost ``cost_of(theta)``."""
+
+    def __init__(self, cost_of) -> None:  # noqa: ANN001
+        self.cost_of, self.starts = cost_of, []
+
+    def rebase(self, states):  # noqa: ANN001, ANN201
+        return states
+
+    def fit(self, states, rounds):  # noqa: ANN001, ANN201, ARG002
+        from dataclasses import replace
+
+        self.starts += [s.theta.copy() for s in states]
+        return [replace(s, res=np.array([np.sqrt(self.cost_of(s.theta))])) for s in states]
+
+
+def test_none_starts_again_from_an_effect_that_ended_at_no_strength_below_it() -> None:
+    """An effect fitted at its neutral magnitude is ``none`` at another optimum: where it ends below ``none``, ``none``
+    starts once more from its linear coordinates (and keeps the better end); an effect that acts, or the orifice law
+    (no magnitude), is no such start."""
+    from grader.gap.fit import FitState
+    from grader.gap.search import _none_from_neutral
+
+    cands = {c.effect: c for c in make_candidates(load_station("default").params())}
+
+    def state(name: str, lin: list[float], mags: list[float], cost: float) -> FitState:
+        return FitState(cands[name], (0,), np.array(lin + mags), np.array([np.sqrt(cost)]))
+
+    ends = [state("none", [0.0, 0.0, 0.0], [], 0.0075),
+            state("coulomb_friction", [0.03, -0.04, 0.0], [0.0], 0.0029),  # Fc = 0: none elsewhere
+            state("valve_dynamics", [0.07, -0.05, 0.0], [0.0222], 0.0029),  # a lag just above its floor: acts
+            state("pressure_flow_nonlinearity", [0.1, 0.1, 0.1], [], 0.001)]  # no magnitude: always acts
+    fitter = _Refit(lambda th: 0.0028 if th[0] == 0.03 else 0.01)
+    again = _none_from_neutral(fitter, ends, 0)  # type: ignore[arg-type]
+    assert [list(s) for s in fitter.starts] == [[0.03, -0.04, 0.0]]
+    assert again.cost == pytest.approx(0.0028) and again.candidate.effect == "none"
+    worse = _Refit(lambda th: 0.009)
+    assert _none_from_neutral(worse, ends, 0) is ends[0]  # type: ignore[arg-type]
+    assert _none_from_neutral(_Refit(lambda th: 0.0), ends[:1] + ends[2:], 0) is ends[0]  # type: ignore[arg-type]
