@@ -177,3 +177,16 @@ def test_none_starts_again_from_an_effect_that_ended_at_no_strength_below_it() -
     worse = _Refit(lambda th: 0.009)
     assert _none_from_neutral(worse, ends, 0) is ends[0]  # type: ignore[arg-type]
     assert _none_from_neutral(_Refit(lambda th: 0.0), ends[:1] + ends[2:], 0) is ends[0]  # type: ignore[arg-type]
+
+
+def test_beta_over_vt_fits_stay_below_the_ceiling_but_never_below_the_baseline() -> None:
+    """A fit the runs cannot pin (no oscillation read) ran β/Vt to 270 times the rig space's top, and its stiffness
+    cost 200-800 RK4 substeps per sample; the ceiling (20 times the top) leaves a realistic baseline's span alone."""
+    from grader.gap.candidates import LINEAR_CEILING, LINEAR_SPAN
+
+    p = load_station("default").params()
+    c = make_candidates(p, ["coulomb_friction"])[1]
+    for bv, top in [(60_000.0, LINEAR_SPAN), (1.09e6, np.log(LINEAR_CEILING["beta_over_Vt"] / 1.09e6)), (3e6, 0.0)]:
+        lo, hi = c.bounds(p.with_(beta_over_Vt=bv))
+        assert hi[0] == pytest.approx(top) and hi[1:3].tolist() == [LINEAR_SPAN] * 2 and lo[0] == -LINEAR_SPAN
+    assert c.bounds()[1][0] == LINEAR_SPAN  # without a baseline: the span alone

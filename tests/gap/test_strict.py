@@ -321,3 +321,18 @@ def test_a_refit_that_ended_in_a_poorer_optimum_does_not_reject_a_true_second_ef
     label, d = _seed_300_case(289, tmp_path)
     assert set(label.split("+")) == {"valve_dynamics", "valve_hysteresis"}
     assert (d.verdict.effect, d.verdict.second_effect) == ("valve_hysteresis", "valve_dynamics")
+
+
+@pytest.mark.parametrize(("interval", "text"), [
+    ((3.8, 4.6), "Fc = 4.2 ± 0.4 lbf"),
+    ((0.0001, 0.00389), "tau = 1.63 ms (95 %: 0.1 to 3.89 ms)"),  # at the fit's floor: not ± 1.9 ms
+])
+def test_a_parameter_prints_with_plus_minus_only_where_its_interval_is_even(interval: tuple[float, float],
+                                                                            text: str) -> None:
+    from grader.gap.schema import Value
+    from grader.gap.summary import param_text
+
+    name, value, unit = ("Fc", 4.2, "lbf") if text.startswith("Fc") else ("tau", 0.00163, "s")
+    assert param_text(name, Value(value=value, unit=unit, interval=interval)) == text
+    assert param_text(f"coulomb_friction.{name}", Value(value=value, unit=unit, interval=interval)).startswith(
+        f"Coulomb friction {name} = ")

@@ -80,3 +80,16 @@ def test_friction_decrement_ignores_last_digit_differences(station: Station, ulp
     c = friction_decrement(p, kp, 2.0, 150.0)
     nudged = p.with_(Kq=float(p.Kq + ulps * np.spacing(p.Kq)), beta_over_Vt=float(p.beta_over_Vt - ulps * np.spacing(p.beta_over_Vt)))
     assert c > 0 and friction_decrement(nudged, kp, 2.0, 150.0) == c
+
+
+def test_an_oscillation_the_run_ends_on_is_not_usable_and_never_a_crash() -> None:
+    """An 8-bit ADC's instability run that sits still and starts to swing in its last samples: the free-growth
+    window held one reading, and the growing-sinusoid fit on it stopped the diagnosis in SVD. It is now an
+    oscillation too short to read."""
+    t = np.arange(1137) * 0.00176  # run A's dataset 0227: 8 bits, q = 0.133 in on a 0.2 in step
+    q = 0.133
+    y = np.where(t >= 0.352, q, 0.0)
+    late = np.arange(t.size) >= 1057
+    y[late] = q + q * ((np.arange(late.sum()) // 4) % 2 == 0)  # a count's toggle in its last 0.14 s
+    fit = OscillationFit().fit(t, y, start=0.10032)
+    assert not fit.usable_ and "fewer than 8" in fit.why_not_
