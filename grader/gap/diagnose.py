@@ -94,16 +94,22 @@ def _verdict(rk: Ranking, names: list[str]) -> Verdict:
 def _second_order_spool(objs: Sequence[RunObjective], base: baseline_mod.Baseline, found: SearchResult,
                         scored: list[Scored], built: list[SchemaCandidate], rk: Ranking, noise_nrmse: Array,
                         before: CrossValidation, executor: Executor | None
-                        ) -> tuple[SearchResult, list[Scored], list[SchemaCandidate], Ranking]:
+                        ) -> tuple[SearchResult, list[Scored], list[SchemaCandidate], Ranking, str | None]:
     """A delay verdict: the second-order spool fitted from the delay's optimum becomes the ``valve_dynamics``
     candidate where it fits the runs better than the first-order lag, and the delay is ranked again with it
-    (:mod:`grader.gap.spool`); otherwise everything is returned unchanged."""
+    (:mod:`grader.gap.spool`). A spool (of either order) faster than the realistic range's
+    (:data:`~grader.gap.spool.TYPICAL_TAU`) is then no lookalike of the delay: taken off its ties, with a note."""
     k = [s.candidate.effect for s in found.states].index(spool.SPOOL)
     alt = spool.fit_against_delay(objs, base.params, found.states[rk.verdict], found.states[k], executor=executor)
     s_alt = scored_of(alt)[0]
-    if s_alt.fit_ms >= scored[k].fit_ms:
-        return found, scored, built, rk
-    return _replaced(found, scored, built, rk.verdict, alt, s_alt, noise_nrmse, before, objs, base)
+    if s_alt.fit_ms < scored[k].fit_ms:
+        found, scored, built, rk = _replaced(found, scored, built, rk.verdict, alt, s_alt, noise_nrmse, before, objs,
+                                             base)
+    tau = spool.fitted_tau(found.states[k])
+    if k not in rk.ties or tau >= spool.TYPICAL_TAU[0]:
+        return found, scored, built, rk, None
+    order = found.states[k].candidate.fixed.get(spool.SPOOL, {}).get("order", 1.0)
+    return found, scored, built, replace(rk, ties=[i for i in rk.ties if i != k]), spool.too_fast_note(tau, order)
 
 
 def _replaced(found: SearchResult, scored: list[Scored], built: list[SchemaCandidate], verdict: int,
@@ -156,9 +162,10 @@ def _needs_second(state: FitState, lengths: Sequence[int], floor_nrmse: Array) -
 
 def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, candidates: Sequence[Candidate],
                   noise_nrmse: Array, sigma: float, fr: evidence.Friction | None, *, second: bool | None,
-                  parallel: bool) -> tuple[list[SchemaCandidate], list[Array], Verdict, list[ReplayInfo]]:
+                  parallel: bool) -> tuple[list[SchemaCandidate], list[Array], Verdict, list[ReplayInfo], str | None]:
     """Search, rank (the friction test, or else the replayed runs, breaking a tie), optionally add a second effect:
-    (candidates best first, augmented model per run, verdict, the replay); ``sigma`` [in] is the reading noise."""
+    (candidates best first, augmented model per run, verdict, the replay, a note on a second-order spool too fast
+    to be the delay's lookalike); ``sigma`` [in] is the reading noise."""
     runs = [o.run for o in objs]
     with worker(parallel) as executor:
         found = search(objs, base.params, candidates, executor=executor)
@@ -169,10 +176,10 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
         built = [build.candidate(st, cv, before, float(sc), runs, found.lengths, base)
                  for st, cv, sc in zip(found.states, found.cvs, rk.scores)]
         rk, why = evidence.coulomb_tie(rk, names, built, fr)
-        lag = found
+        lag, fast = found, None
         if names[rk.verdict] == spool.DELAY and spool.SPOOL in names:
-            found, scored, built, rk = _second_order_spool(objs, base, found, scored, built, rk, noise_nrmse, before,
-                                                           executor)
+            found, scored, built, rk, fast = _second_order_spool(objs, base, found, scored, built, rk, noise_nrmse,
+                                                                 before, executor)
         rp = None
         told = [rk.verdict, *rk.ties, *(i for i in explaining(scored, noise_nrmse) if i not in (rk.verdict, *rk.ties)
                                         and np.log(rk.scores[i] / rk.scores[rk.verdict]) < replay.SPAN)]
@@ -244,7 +251,7 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
         verdict = verdict.model_copy(update={
             "second_effect": added, "shares": {verdict.effect: share, added: build.r6(1.0 - share)},
             "explanation": text, "second_indistinguishable_from": extra.alike, "second_separating_test": test})
-    return cands, y_aug, verdict, replays
+    return cands, y_aug, verdict, replays, fast if names[rk.verdict] == spool.DELAY else None
 
 
 def _notes(ds: Dataset, runs: Sequence[GapRun], quant: quant_mod.Quantization | None, noise: noise_mod.Noise,
@@ -288,7 +295,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     objs = [objective(r, noise.sigma) for r in runs]
     own = spread(objs, Point(base.params), noise.sigma)
     objs = [replace(o, weight=float(np.sqrt(f**2 / (f**2 + s)))) for o, f, s in zip(objs, noise_nrmse, own)]
-    cands, y_aug, verdict, replayed = _which_effect(objs, base, make_candidates(base.params, effects, demand=demand),
+    cands, y_aug, verdict, replayed, fast = _which_effect(objs, base, make_candidates(base.params, effects, demand=demand),
                                                     noise_nrmse, noise.sigma, fr, second=second, parallel=parallel)
     lg = None
     if fr is None and not base.kpot_from_flow_test:  # the flow test against the runs' loop gain (not against itself)
@@ -303,7 +310,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
         readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit),
         candidates=cands, verdict=verdict, quantization=build.quantization_info(quant),
         static_evidence={} if fr is None else fr.values(), loop_gain=lg, replay=replayed,
-        notes=[*set_aside, *base.notes, *_notes(ds, runs, quant, noise, implied, demand)],
+        notes=[*set_aside, *base.notes, *_notes(ds, runs, quant, noise, implied, demand), *([fast] if fast else [])],
     )
     return Analysis(diag, runs, segs, y_lin, y_aug)
 

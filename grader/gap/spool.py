@@ -32,6 +32,26 @@ DELAY, SPOOL = "sampling_delay", "valve_dynamics"
 SECOND_ORDER = {"order": 2.0, "zeta": EFFECTS[SPOOL].param("zeta").default}
 
 
+#: The realistic range of a spool's tau [s] (small rigs' valves, docs/reference/effects.md): a spool faster than its
+#: bottom is no lookalike of a delay (a second-order one acts as a delay of 1.4·τ below ωn, a first-order one of
+#: about τ, so every delay under about 0.7 ms had a lookalike, and run A's delays of 0.3-0.6 ms were reported as not
+#: told apart from one).
+TYPICAL_TAU = EFFECTS[SPOOL].param("tau").typical
+
+
+def fitted_tau(state: FitState) -> float:
+    """The spool's tau [s] at a fit of the spool alone."""
+    return state.candidate.values(state.theta)[SPOOL]["tau"]
+
+
+def too_fast_note(tau: float, order: float) -> str:
+    """The note on a spool of ``order`` that acts as the delay but is faster than the realistic range's."""
+    form = "a second-order spool (damping 0.7)" if order == 2 else "a spool lag"
+    return (f"{form} of tau = {tau * 1e3:.2g} ms would act on these runs as the delay "
+            f"does, but it is faster than small rigs' servo valves ({TYPICAL_TAU[0] * 1e3:g}-{TYPICAL_TAU[1] * 1e3:g} "
+            "ms): the delay is named; a step recorded at a faster sample rate would tell them apart")
+
+
 def second_order(c: Candidate) -> Candidate:
     """The ``valve_dynamics`` candidate ``c`` (a first-order lag) as a second-order spool."""
     assert c.names == (SPOOL,), "only the spool alone has a second-order form"

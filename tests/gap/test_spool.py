@@ -130,3 +130,17 @@ def test_a_kept_none_verdict_that_an_effect_beats_has_no_negative_margin() -> No
     assert rank(cands, NOISE).verdict == 1
     kept = rank(cands, NOISE, verdict=0)
     assert kept.verdict == 0 and kept.margin == 0.0
+
+
+@pytest.mark.parametrize(("delay", "alike"), [(0.0004, False), (0.0012, True)])
+def test_a_second_order_spool_faster_than_small_rigs_valves_is_no_lookalike_of_a_delay(
+        tmp_path: Path, without_u: Callable[[Path], Path], delay: float, alike: bool) -> None:
+    """Without u, a delay and a second-order spool of τ = delay/1.4 act alike; a spool under 0.5 ms (the realistic
+    range's bottom) is no small rig's valve, so a 0.4 ms delay is named alone, with a note, while a 1.2 ms delay's
+    lookalike (0.86 ms) stays listed."""
+    truth = EffectSet({"sampling_delay": {"delay": delay}})
+    folder = without_u(make_case_dataset(load_station("default"), truth, tmp_path / "delay", 7, friction_test=False))
+    d = analyse(folder).diagnosis
+    assert d.verdict.effect == "sampling_delay"
+    assert (d.verdict.indistinguishable_from == ["valve_dynamics"]) is alike
+    assert any("faster than small rigs' servo valves" in n for n in d.notes) is not alike
