@@ -164,8 +164,8 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
                   noise_nrmse: Array, sigma: float, fr: evidence.Friction | None, *, second: bool | None,
                   parallel: bool) -> tuple[list[SchemaCandidate], list[Array], Verdict, list[ReplayInfo], str | None]:
     """Search, rank (the friction test, or else the replayed runs, breaking a tie), optionally add a second effect:
-    (candidates best first, augmented model per run, verdict, the replay, a note on a second-order spool too fast
-    to be the delay's lookalike); ``sigma`` [in] is the reading noise."""
+    (candidates best first, augmented model per run, verdict, the replay, a note on a spool too fast to be the
+    delay verdict's lookalike); ``sigma`` [in] is the reading noise."""
     runs = [o.run for o in objs]
     with worker(parallel) as executor:
         found = search(objs, base.params, candidates, executor=executor)
