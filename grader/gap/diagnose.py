@@ -38,8 +38,12 @@ from grader.gap.separating import separating_test
 from grader.gap.spread import spread
 from grader.gap.summary import by_text
 from grader.gap.verdict import Ranking, Scored, explaining, rank
+from grader.model.effects import EffectSet
 
 Array = NDArray[np.float64]
+QUANTIZATION = "sensor_quantization"
+#: An ADC step within this many bits of a whole number is simulated in the augmented model's loop.
+WHOLE_BITS = 0.05
 #: A verdict whose fit leaves more than this many times the floor's mean square (the reading noise's and what the
 #: noise makes the verdict's model do, :mod:`grader.gap.spread`) searches a second effect (``second=None``).
 RESIDUAL_RATIO = 1.0
@@ -67,9 +71,16 @@ def _reference_kfb(ds: Dataset) -> float | None:
     return PotCalibration().fit(ds.calibration["position"], ds.calibration["voltage"]).Kpot_.value
 
 
-def _model_y(state: FitState, runs: Sequence[GapRun], base: baseline_mod.Baseline) -> list[Array]:
-    """The fitted model's simulation of every whole run."""
-    return Backend(runs).all_runs([state.candidate.point(base.params, state.theta)])[0]
+def _model_y(point: Point, runs: Sequence[GapRun], quant: quant_mod.Quantization | None, verdict: Verdict
+             ) -> list[Array]:
+    """The augmented model's simulation of every whole run: the fitted ``point``, with the ADC the readings show in
+    its loop where the verdict names ``sensor_quantization`` and its step is a whole number of bits of a ±10 V
+    board through Kpot (to :data:`WHOLE_BITS`; before, that model was the linear one alone)."""
+    bits = round(quant.bits) if quant is not None and np.isfinite(quant.bits) else 0
+    if (quant is not None and quant.matters and QUANTIZATION in (verdict.effect, verdict.second_effect)
+            and bits >= 1 and abs(quant.bits - bits) < WHOLE_BITS):
+        point = replace(point, effects=point.effects.merged(EffectSet({QUANTIZATION: {"bits": float(bits)}})))
+    return Backend(runs).all_runs([point])[0]
 
 
 def _verdict(rk: Ranking, names: list[str]) -> Verdict:
@@ -162,9 +173,9 @@ def _needs_second(state: FitState, lengths: Sequence[int], floor_nrmse: Array) -
 
 def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, candidates: Sequence[Candidate],
                   noise_nrmse: Array, sigma: float, fr: evidence.Friction | None, *, second: bool | None,
-                  parallel: bool) -> tuple[list[SchemaCandidate], list[Array], Verdict, list[ReplayInfo], str | None]:
+                  parallel: bool) -> tuple[list[SchemaCandidate], Point, Verdict, list[ReplayInfo], str | None]:
     """Search, rank (the friction test, or else the replayed runs, breaking a tie), optionally add a second effect:
-    (candidates best first, augmented model per run, verdict, the replay, a note on a spool too fast to be the
+    (candidates best first, the augmented model, verdict, the replay, a note on a spool too fast to be the
     delay verdict's lookalike); ``sigma`` [in] is the reading noise."""
     runs = [o.run for o in objs]
     with worker(parallel) as executor:
@@ -230,14 +241,14 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
                 extra, why2 = None, ""
                 replays = [*(r for r in replays if r.of != "second_effect"), dropped]
     cands = [built[i] for i in rk.order]
-    y_aug = _model_y(found.states[rk.verdict], runs, base)
+    aug = found.states[rk.verdict]
     verdict = _verdict(rk, names)
     if why:
         verdict = verdict.model_copy(update={"explanation": f"{verdict.explanation}; {why}"})
     if extra is not None:
         pair, added = extra.candidate, extra.state.candidate.names[-1]
         cands.append(pair)
-        y_aug = _model_y(extra.state, runs, base)
+        aug = extra.state
         first = (extra.share if extra.share is not None else
                  cands[0].shrink / pair.shrink if pair.shrink > 0 else 1.0)
         share = build.r6(min(max(first, 0.0), 1.0))
@@ -251,7 +262,8 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
         verdict = verdict.model_copy(update={
             "second_effect": added, "shares": {verdict.effect: share, added: build.r6(1.0 - share)},
             "explanation": text, "second_indistinguishable_from": extra.alike, "second_separating_test": test})
-    return cands, y_aug, verdict, replays, fast if names[rk.verdict] == spool.DELAY else None
+    point = aug.candidate.point(base.params, aug.theta)
+    return cands, point, verdict, replays, fast if names[rk.verdict] == spool.DELAY else None
 
 
 def _notes(ds: Dataset, runs: Sequence[GapRun], quant: quant_mod.Quantization | None, noise: noise_mod.Noise,
@@ -295,13 +307,14 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     objs = [objective(r, noise.sigma) for r in runs]
     own = spread(objs, Point(base.params), noise.sigma)
     objs = [replace(o, weight=float(np.sqrt(f**2 / (f**2 + s)))) for o, f, s in zip(objs, noise_nrmse, own)]
-    cands, y_aug, verdict, replayed, fast = _which_effect(objs, base, make_candidates(base.params, effects, demand=demand),
+    cands, aug, verdict, replayed, fast = _which_effect(objs, base, make_candidates(base.params, effects, demand=demand),
                                                     noise_nrmse, noise.sigma, fr, second=second, parallel=parallel)
     lg = None
     if fr is None and not base.kpot_from_flow_test:  # the flow test against the runs' loop gain (not against itself)
         lg = evidence.loop_gain(ds, next(c for c in cands if c.effect == verdict.effect), base.params)
     verdict = evidence.viscous_from_loop_gain(evidence.viscous(verdict, fr), lg)
     verdict = evidence.quantized(evidence.viscous_unexcluded(verdict, fr, lg), quant)
+    y_aug = _model_y(aug, runs, quant, verdict)
     gain_unit = "dimensionless" if ds.manifest.feedback == "volts" else "V/in"
     diag = Diagnosis(
         dataset=ds.root.name, station=ds.manifest.station, inputs_sha256=ds.inputs_sha256,

@@ -210,3 +210,14 @@ def test_a_second_effect_the_data_cannot_tell_from_another_is_reported_with_it(
         assert "the runs tell sampling_delay apart from valve_dynamics" in v.explanation
     else:
         assert second == []
+
+
+def test_a_quantisation_verdicts_augmented_model_has_the_adc_in_its_loop(make: MakeDataset) -> None:
+    """A 10-bit board (0.023 in a count through the default pot): the verdict is sensor_quantization, and the model
+    'with sensor quantization' simulates the ADC in the loop. Before, it was the linear model alone, with a steady
+    state error of 0 (1e-5 in) where a P loop settles anywhere within half a count."""
+    d = analyse(make("adc10", {"sensor_quantization": {"bits": 10}}), effects=["coulomb_friction"]).diagnosis
+    assert d.verdict.effect == "sensor_quantization" and d.quantization is not None
+    half = d.quantization.steady_state_error_band.value
+    ends = [r.augmented for r in d.readoffs if r.quantity == "steady_state_error" and r.run.startswith("step")]
+    assert ends and all(abs(e) <= 1.05 * half for e in ends) and any(abs(e) > 1e-4 for e in ends)
