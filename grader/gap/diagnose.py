@@ -42,8 +42,6 @@ from grader.model.effects import EffectSet
 
 Array = NDArray[np.float64]
 QUANTIZATION = "sensor_quantization"
-#: An ADC step within this many bits of a whole number is simulated in the augmented model's loop.
-WHOLE_BITS = 0.05
 #: A verdict whose fit leaves more than this many times the floor's mean square (the reading noise's and what the
 #: noise makes the verdict's model do, :mod:`grader.gap.spread`) searches a second effect (``second=None``).
 RESIDUAL_RATIO = 1.0
@@ -75,10 +73,9 @@ def _model_y(point: Point, runs: Sequence[GapRun], quant: quant_mod.Quantization
              ) -> list[Array]:
     """The augmented model's simulation of every whole run: the fitted ``point``, with the ADC the readings show in
     its loop where the verdict names ``sensor_quantization`` and its step is a whole number of bits of a ±10 V
-    board through Kpot (to :data:`WHOLE_BITS`; before, that model was the linear one alone)."""
-    bits = round(quant.bits) if quant is not None and np.isfinite(quant.bits) else 0
-    if (quant is not None and quant.matters and QUANTIZATION in (verdict.effect, verdict.second_effect)
-            and bits >= 1 and abs(quant.bits - bits) < WHOLE_BITS):
+    board through Kpot (:func:`~grader.gap.quantization.loop_bits`; before, that model was the linear one alone)."""
+    bits = None if quant is None else quant_mod.loop_bits(quant.bits)
+    if quant is not None and quant.matters and QUANTIZATION in (verdict.effect, verdict.second_effect) and bits:
         point = replace(point, effects=point.effects.merged(EffectSet({QUANTIZATION: {"bits": float(bits)}})))
     return Backend(runs).all_runs([point])[0]
 

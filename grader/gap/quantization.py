@@ -84,6 +84,18 @@ class Quantization:
                 f"may settle anywhere within ±{self.step / 2:.3g} in of the set-point")
 
 
+#: An ADC's estimated bits within this of a whole number are simulated in the augmented model's loop.
+LOOP_BITS_TOL = 0.05
+
+
+def loop_bits(bits: float) -> int | None:
+    """The whole number of bits of a ±10 V board to simulate for an estimate of ``bits``, or None where it is not
+    within :data:`LOOP_BITS_TOL` of one (another span, or no ADC's step)."""
+    if not math.isfinite(bits) or round(bits) < 1 or abs(bits - round(bits)) >= LOOP_BITS_TOL:
+        return None
+    return int(round(bits))
+
+
 def _limit_cycle(run: GapRun, q: float, sigma: float) -> bool:
     tail = run.y[run.t >= run.t[-1] - TAIL]
     counts = round(float(np.ptp(tail)) / q)
