@@ -30,6 +30,7 @@ import numpy as np
 
 from grader.gap.noise import Noise
 from grader.gap.runs import GapRun
+from grader.model.effects import EFFECTS
 
 STEP_SHARE = 0.01
 QUIET = 0.3
@@ -90,8 +91,9 @@ LOOP_BITS_TOL = 0.05
 
 def loop_bits(bits: float) -> int | None:
     """The whole number of bits of a ±10 V board to simulate for an estimate of ``bits``, or None where it is not
-    within :data:`LOOP_BITS_TOL` of one (another span, or no ADC's step)."""
-    if not math.isfinite(bits) or round(bits) < 1 or abs(bits - round(bits)) >= LOOP_BITS_TOL:
+    within :data:`LOOP_BITS_TOL` of one (another span, or no ADC's step) or outside the simulator's range."""
+    spec = EFFECTS["sensor_quantization"].param("bits")
+    if not math.isfinite(bits) or not spec.lo <= round(bits) <= spec.hi or abs(bits - round(bits)) >= LOOP_BITS_TOL:
         return None
     return int(round(bits))
 

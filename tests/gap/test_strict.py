@@ -339,7 +339,7 @@ def test_a_parameter_prints_with_plus_minus_only_where_its_interval_is_even(inte
 
 
 @pytest.mark.parametrize(("bits", "whole"), [(10.0007, 10), (13.9996, 14), (10.3, None), (float("nan"), None),
-                                             (0.2, None)])
+                                             (0.2, None), (3.0, None), (26.0, None), (24.01, 24)])
 def test_an_adc_is_simulated_in_the_loop_only_at_a_whole_number_of_bits(bits: float, whole: int | None) -> None:
     from grader.gap.quantization import loop_bits
 
