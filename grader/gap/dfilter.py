@@ -7,8 +7,9 @@ e_{k−1})/T with a = τf/(τf + T). Where the recorded u follows the manifest's
 clearly better than without one (the unfiltered law misses u by at least :data:`CLEARLY` times as much,
 and the filter moves u by at least the resolution u was printed with), the model cannot reproduce the
 run's controller. Simulated unfiltered, such runs (one whose filter moved u by 1 % of its RMS
-among them) led an independent simulator's diagnoses astray (a rig with no effect called valve saturation, Coulomb friction called none) or had the gains
-refused as wrong (u 0.88 times the manifest's law). So the run is set aside with a note, as long as
+among them) led an independent simulator's diagnoses astray (a rig with no effect called valve
+saturation, Coulomb friction called none) or had the gains refused as wrong (u 0.88 times the
+manifest's law). So the run is set aside with a note, as long as
 :data:`~grader.gap.runs.MIN_RUNS` others are left; else it is kept, with a note, and its gains are not
 checked against u.
 """
@@ -22,8 +23,7 @@ from numpy.typing import NDArray
 from scipy.signal import lfilter
 
 from grader.datasets import Dataset
-from grader.datasets.sampling import printed_resolution
-from grader.gap.runs import MIN_RUNS, GapRun, controller_gain, seen_reading
+from grader.gap.runs import MIN_RUNS, GapRun, controller_gain, seen_reading, u_resolution
 from grader.model.rig_setup import DAC_LIMIT
 
 Array = NDArray[np.float64]
@@ -37,8 +37,7 @@ def derivative_filter(run: GapRun, T: float, k_fb: float) -> float | None:
     """τf [s] of the derivative filter through which the recorded u follows the manifest's gains (module
     docstring), or None: no u, no derivative term, or u follows the unfiltered law about as well."""
     c = run.controller
-    y = seen_reading(run, T) if run.u is not None and c.Kd != 0 else None
-    if y is None or run.u is None:
+    if run.u is None or c.Kd == 0 or (y := seen_reading(run, T)) is None:
         return None
     e = k_fb * (run.r - y)
     use = np.abs(run.u) < 0.95 * DAC_LIMIT
@@ -50,9 +49,7 @@ def derivative_filter(run: GapRun, T: float, k_fb: float) -> float | None:
     miss = {a: float(np.mean(np.abs(run.u - rest - d)[use])) for a, d in terms.items()}
     best = min(POLES, key=miss.__getitem__)
     moved = float(np.sqrt(np.mean((terms[0.0] - terms[best])[use] ** 2)))
-    printed = run.u[run.u != 0]  # rows at rest print 0 in any format
-    step = printed_resolution(printed) if printed.size else 0.0
-    if miss[0.0] < CLEARLY * miss[best] or moved < step:
+    if miss[0.0] < CLEARLY * miss[best] or moved < u_resolution(run.u):
         return None
     return best / (1.0 - best) * T
 

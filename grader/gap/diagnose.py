@@ -41,7 +41,6 @@ from grader.gap.verdict import Ranking, Scored, explaining, rank
 from grader.model.effects import EffectSet
 
 Array = NDArray[np.float64]
-QUANTIZATION = "sensor_quantization"
 #: A verdict whose fit leaves more than this many times the floor's mean square (the reading noise's and what the
 #: noise makes the verdict's model do, :mod:`grader.gap.spread`) searches a second effect (``second=None``).
 RESIDUAL_RATIO = 1.0
@@ -72,11 +71,11 @@ def _reference_kfb(ds: Dataset) -> float | None:
 def _model_y(point: Point, runs: Sequence[GapRun], quant: quant_mod.Quantization | None, verdict: Verdict
              ) -> list[Array]:
     """The augmented model's simulation of every whole run: the fitted ``point``, with the ADC the readings show in
-    its loop where the verdict names ``sensor_quantization`` and its step is a whole number of bits of a ±10 V
-    board through Kpot (:func:`~grader.gap.quantization.loop_bits`; before, that model was the linear one alone)."""
-    bits = None if quant is None else quant_mod.loop_bits(quant.bits)
-    if quant is not None and quant.matters and QUANTIZATION in (verdict.effect, verdict.second_effect) and bits:
-        point = replace(point, effects=point.effects.merged(EffectSet({QUANTIZATION: {"bits": float(bits)}})))
+    its loop (:func:`~grader.gap.quantization.loop_adc`; before, that model was the linear one alone)."""
+    bits = quant_mod.loop_adc(quant, verdict)
+    if bits is not None:
+        adc = EffectSet({quant_mod.QUANTIZATION: {"bits": float(bits)}})
+        point = replace(point, effects=point.effects.merged(adc))
     return Backend(runs).all_runs([point])[0]
 
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -32,6 +33,7 @@ from grader.gap.noise import Noise
 from grader.gap.runs import GapRun
 from grader.model.effects import EFFECTS
 
+QUANTIZATION = "sensor_quantization"
 STEP_SHARE = 0.01
 QUIET = 0.3
 LIMIT_CYCLE_COUNTS = (1, 4)  # peak-to-peak readings, in counts, of a quantisation limit cycle
@@ -92,10 +94,30 @@ LOOP_BITS_TOL = 0.05
 def loop_bits(bits: float) -> int | None:
     """The whole number of bits of a ±10 V board to simulate for an estimate of ``bits``, or None where it is not
     within :data:`LOOP_BITS_TOL` of one (another span, or no ADC's step) or outside the simulator's range."""
-    spec = EFFECTS["sensor_quantization"].param("bits")
+    spec = EFFECTS[QUANTIZATION].param("bits")
     if not math.isfinite(bits) or not spec.lo <= round(bits) <= spec.hi or abs(bits - round(bits)) >= LOOP_BITS_TOL:
         return None
     return int(round(bits))
+
+
+class _Named(Protocol):
+    effect: str
+    second_effect: str | None
+
+
+class _Assessed(Protocol):
+    bits: float
+    matters: bool
+
+
+def loop_adc(quant: _Assessed | None, verdict: _Named) -> int | None:
+    """The bits of the ADC the augmented model has in its loop: where the verdict names ``sensor_quantization``
+    (as the verdict or its second effect), the ADC matters, and its step is whole bits (:func:`loop_bits`); else
+    None. One rule for the simulation (:mod:`grader.gap.diagnose`) and its label (:mod:`grader.gap.report`);
+    ``quant`` is a :class:`Quantization` or the report's ``QuantizationInfo``."""
+    if quant is None or not quant.matters or QUANTIZATION not in (verdict.effect, verdict.second_effect):
+        return None
+    return loop_bits(quant.bits)
 
 
 def _limit_cycle(run: GapRun, q: float, sigma: float) -> bool:

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from grader.gap.figures import CandidatesFigure, Job, PlotHelpers, RunFigure, draw_all, plot_helpers
-from grader.gap.quantization import loop_bits
+from grader.gap.quantization import QUANTIZATION, loop_adc
 from grader.gap.runs import GapRun
 from grader.gap.schema import Diagnosis, diagnosis_json
 from grader.gap.segments import Segment
@@ -94,12 +94,15 @@ def _candidate_table(d: Diagnosis) -> str:
 
 def _augmented(d: Diagnosis) -> str:
     """The effect(s) the augmented model adds: the verdict, with its second effect when that was fitted too, or when
-    it is the ADC the model then has in its loop (:func:`grader.gap.diagnose._model_y`)."""
+    it is the ADC the model has in its loop (:func:`~grader.gap.quantization.loop_adc`); an ADC verdict the model
+    cannot simulate leaves the re-fitted linear model (``none``)."""
     combo = combination(d)
-    q = d.quantization
-    if combo is None and d.verdict.second_effect == "sensor_quantization" and q is not None and loop_bits(q.bits):
-        return f"{d.verdict.effect}+sensor_quantization"
-    return d.verdict.effect if combo is None else combo.effect
+    if combo is not None:
+        return combo.effect
+    adc = loop_adc(d.quantization, d.verdict) is not None
+    if d.verdict.effect == QUANTIZATION:
+        return QUANTIZATION if adc else "none"
+    return f"{d.verdict.effect}+{QUANTIZATION}" if adc else d.verdict.effect
 
 
 def render_html(analysis: Analysis, images: dict[str, bytes]) -> str:

@@ -209,6 +209,13 @@ def _seen(run: GapRun, T: float) -> tuple[Array, float] | None:
     return y, k
 
 
+def u_resolution(u: Array) -> float:
+    """The resolution [V] the controller output ``u`` was printed with (0 for all zeros): rows at rest print 0 in
+    any format, and would read as whole volts, so they are left out."""
+    printed = u[u != 0]
+    return printed_resolution(printed) if printed.size else 0.0
+
+
 def seen_reading(run: GapRun, T: float) -> Array | None:
     """The reading the controller saw (:func:`_seen`), or None without u."""
     seen = _seen(run, T)
@@ -280,8 +287,7 @@ def term_gains(run: GapRun, T: float, k_fb: float) -> TermFit | None:
     fit = least_squares(lambda x: scaled @ x - u, c * size, loss="soft_l1", f_scale=0.01 * rms)
     g = fit.x / size
     moved = np.sqrt(np.mean((a * (g - c)) ** 2, axis=0))
-    printed = u[u != 0]  # rows at rest print 0 in any format, and would read as whole volts
-    steps = moved / max(printed_resolution(printed) if printed.size else 0.0, 1e-12)
+    steps = moved / max(u_resolution(u), 1e-12)
     as_terms = lambda x: dict(zip(TERMS, map(float, x)))  # noqa: E731
     return TermFit(as_terms(c), as_terms(g), as_terms(moved / rms), as_terms(steps))
 

@@ -46,6 +46,9 @@ def test_a_filtered_derivative_is_found_with_its_time_constant(tau_f: float) -> 
 
 def test_an_unfiltered_derivative_a_p_run_or_a_filter_below_the_print_resolution_is_not_one() -> None:
     assert derivative_filter(_pd_run("pd", None), T, 1.0) is None
+    no_u = _pd_run("pd", 3 * T)
+    assert derivative_filter(GapRun(no_u.name, no_u.kind, no_u.controller, no_u.t, no_u.r, no_u.y, None, no_u.start,
+                                    no_u.scale, no_u.noise), T, 1.0) is None  # no u column: nothing to tell
     assert derivative_filter(_pd_run("pd", None, printed=0.001), T, 1.0) is None
     p_run = _pd_run("p", None, kd=0.0)
     assert derivative_filter(p_run, T, 1.0) is None

@@ -171,3 +171,25 @@ def test_the_candidates_figure_highlights_the_verdicts_pair_and_names_both(analy
     alone = candidates_job(d.model_copy(update={"verdict": adc}))
     assert alone.verdict == "sensor quantization" and not any(alone.is_verdict)
     assert sum(candidates_job(d).is_verdict) == 1
+
+
+def test_the_augmented_curve_is_labelled_by_what_it_simulates(analysed: Callable[..., object]) -> None:
+    """The run plots' augmented model is the verdict's, with the ADC in its loop only where one rule (loop_adc)
+    puts it there: an ADC of whole bits that matters. An ADC verdict it cannot simulate (a step of 10.3 bits) is
+    drawn as what it is, the re-fitted linear model."""
+    from grader.gap.report import _augmented
+    from grader.gap.schema import QuantizationInfo, Value
+
+    d = analysed("coulomb_friction", {"coulomb_friction": {"Fc": 2.0}}).diagnosis
+    band = Value(value=0.01, unit="in")
+    q = QuantizationInfo(adc_step=band, share_of_step=0.1, share_of_readoff=None, bits=10.0, limit_cycle=False,
+                         matters=True, steady_state_error_band=band)
+    with_adc = d.verdict.model_copy(update={"second_effect": "sensor_quantization"})
+    assert _augmented(d.model_copy(update={"verdict": with_adc, "quantization": q})) == \
+        "coulomb_friction+sensor_quantization"
+    assert _augmented(d.model_copy(update={"verdict": with_adc, "quantization": q.model_copy(
+        update={"bits": 10.3})})) == "coulomb_friction"
+    adc = d.verdict.model_copy(update={"effect": "sensor_quantization"})
+    assert _augmented(d.model_copy(update={"verdict": adc, "quantization": q})) == "sensor_quantization"
+    assert _augmented(d.model_copy(update={"verdict": adc, "quantization": q.model_copy(update={"bits": 10.3})})) \
+        == "none"
