@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from grader.gap.bench import ERROR, GENERATOR, BenchConfig, BenchResult, Case, coverage, effect_params, \
-    make_case_dataset, plan, random_station, step_demand
+    finest_board, make_case_dataset, plan, random_station, step_demand
 from grader.gap.candidates import NONE
 from grader.gap.schema import Verdict
 from grader.gap.summary import combination
@@ -53,7 +53,8 @@ def tasks(cfg: BenchConfig, root: Path) -> list[Task]:
     for k, (names, strength) in enumerate(plan(cfg, rng)):
         station = random_station(base, rng)
         demand = step_demand(station)
-        truth = EffectSet({n: effect_params(n, rng, strength, demand) for n in names if n != NONE})
+        finest = finest_board(station) if "sensor_quantization" in names else 16
+        truth = EffectSet({n: effect_params(n, rng, strength, demand, finest) for n in names if n != NONE})
         label = "+".join(names)
         out.append(Task(root / f"{k:04d}_{label}", label, station, truth, int(rng.integers(2**31)), strength,
                         cfg.friction_test))

@@ -145,10 +145,10 @@ def _printed(runs: Sequence[GapRun], q: float, sigma: float, bits: float) -> boo
         return False
     y = np.concatenate([r.y for r in runs]) / q
     on = float(np.mean(np.abs(y - np.round(y)) < 0.02))
-    return on >= 0.95 and _dithers(q, sigma)
+    return on >= 0.95 and dithers(q, sigma)
 
 
-def _dithers(q: float, sigma: float) -> bool:
+def dithers(q: float, sigma: float) -> bool:
     """Whether white noise dithers a lattice of step ``q`` [in]: the readings' RMS ``sigma`` [in] less the lattice's
     own q/√12 at least :data:`DITHER` q."""
     return sigma**2 - q**2 / 12.0 >= (DITHER * q) ** 2
@@ -164,4 +164,4 @@ def assess(runs: Sequence[GapRun], noise: Noise, kpot: float) -> Quantization | 
     bits = math.log2(ADC_SPAN / (q * kpot)) if q * kpot > 0 else float("nan")
     white = noise.sigma
     return Quantization(q, q / command, bits, any(_limit_cycle(r, q, white) for r in steps),
-                        q / _readoff_error(runs, q, white), _printed(runs, q, white, bits), _dithers(q, white))
+                        q / _readoff_error(runs, q, white), _printed(runs, q, white, bits), dithers(q, white))

@@ -15,7 +15,7 @@ import pytest
 from grader.cli import main
 from grader.datasets import load
 from grader.gap import search
-from grader.gap.bench import BenchConfig, Case, make_case_dataset
+from grader.gap.bench import BenchConfig, Case, effect_params, finest_board, make_case_dataset, station_runs
 from grader.gap.bench_report import render
 from grader.gap.bench_run import Task, tasks
 from grader.gap.diagnose import analyse
@@ -142,6 +142,31 @@ def test_a_limit_cycle_of_a_few_counts_names_quantisation_below_one_percent() ->
     quant = assess([_settled_run(q, 2)], Noise(sigma=1e-5, adc_step=q), 1.0)
     assert quant is not None and quant.share < 0.01
     assert quant.limit_cycle and quant.matters and "limit cycle" in quant.text()
+
+
+@pytest.mark.parametrize(("kpot", "sigma", "finest"), [
+    (1.2, 2.455e-4, 15),  # run A's 0229: 16 bits (q 2.54e-4 in) dithered by the noise, 15 (5.09e-4 in) not
+    (1.2, 1e-5, 16),      # quiet: even a 16-bit step sets the error students read off
+    (0.45, 2e-3, 14),     # noisy: only a step of 1 % of the 0.2 in command matters (2.7e-3 in at 14 bits)
+])
+def test_the_benchmark_withholds_only_adcs_whose_step_matters(kpot: float, sigma: float, finest: int) -> None:
+    """Issue 10, item 3: below the threshold the right answer is the note, so a withheld ADC is drawn from 8 bits
+    to the finest board that matters by the diagnosis' rule on that station's step command and noise."""
+    station = load_station("default")
+    station = station.model_copy(update={"truth": {**station.truth, "Kpot": f"{kpot} V/in"},
+                                         "noise": {**station.noise, "position": f"{sigma} in"}})
+    assert finest_board(station) == finest
+    command = max(r.amplitude for r in station_runs(station, None) if r.kind == "step")
+    for bits, material in ((finest, True), (finest + 1, False)):
+        if bits > 16:
+            continue
+        q = 20.0 / 2**bits / kpot
+        if material:
+            assert q >= 0.01 * command or sigma < 0.5 * q
+        else:
+            assert q < 0.01 * command and sigma >= 0.5 * q
+    draws = {effect_params("sensor_quantization", np.random.default_rng(k), finest=finest)["bits"] for k in range(60)}
+    assert draws == set(range(8, finest + 1))
 
 
 def test_no_lattice_no_quantisation() -> None:
