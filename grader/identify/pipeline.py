@@ -123,17 +123,28 @@ def _kp_crit(kp: float, volts: bool, run: Run) -> Estimate:
                     {"run": run.name})
 
 
+def _friction(dataset: Dataset) -> tuple[dict[str, Estimate], float]:
+    """B [lbf·s/in] and Fc [lbf] from the friction test, and the model's B (0 where B's interval holds 0, as the
+    lab concludes). Without a friction test (the manifest names no friction file) both are ``not_identifiable``,
+    and the model has no friction: B = 0 and no decrement of the oscillation's growth."""
+    if dataset.friction is None:
+        reason = "the dataset has no friction test (the manifest names no friction file); the model takes B = 0"
+        return {"B": not_identifiable("lbf*s/in", "OLS slope of force on speed", reason),
+                "Fc": not_identifiable("lbf", "OLS of force on sign(speed) and speed", reason)}, 0.0
+    fric = FrictionFit().fit(dataset.friction["speed"], dataset.friction["force"])
+    return {"B": fric.B_, "Fc": fric.Fc_}, 0.0 if fric.B_is_zero_ else fric.B_.value
+
+
 def identify(dataset: Dataset) -> Identification:
     """Run the identification procedure on ``dataset``."""
-    for what in ("calibration", "flow_test", "friction"):
+    for what in ("calibration", "flow_test"):
         _require(dataset, what)
     g = dataset.given
     pot = PotCalibration().fit(dataset.calibration["position"], dataset.calibration["voltage"])
     flow = FlowGainFit(Kamp=g["Kamp"]).fit(dataset.flow_test["input"], dataset.flow_test["flow"])
-    fric = FrictionFit().fit(dataset.friction["speed"], dataset.friction["force"])
-    static = {"Kpot": pot.Kpot_, "Kq": flow.Kq_, "leakage": flow.leakage_, "B": fric.B_, "Fc": fric.Fc_}
+    friction, B_model = _friction(dataset)
+    static = {"Kpot": pot.Kpot_, "Kq": flow.Kq_, "leakage": flow.leakage_, **friction}
     run = _instability_run(dataset)
-    B_model = 0.0 if fric.B_is_zero_ else fric.B_.value
     try:
         est, model, students = _from_oscillation(dataset, run, static, B_model)
     except IdentificationError as exc:
@@ -165,7 +176,8 @@ def _from_oscillation(dataset: Dataset, run: Run, static: Mapping[str, Estimate]
                        {"omega_crit": first.omega_, "growth_rate": replace(first.sigma_, note=raw),
                         "Kp_crit": _kp_crit(kp, volts, run)})
     rough = _coefficient_model(g, fb, kp, B_model, first.omega_.value, Kq.value, Kpot.value)
-    c = friction_decrement(rough, kp, static["Fc"].value, first.omega_.value)
+    fc = static["Fc"].value if static["Fc"].status == "ok" else 0.0
+    c = friction_decrement(rough, kp, fc, first.omega_.value)
     osc = OscillationFit(a_sat).fit(run.t, run.y, start=command_start(run), decrement=c, guess=first) if c > 0 else first
     x = {"omega": osc.omega_.value, "Kq": Kq.value, "Kpot": Kpot.value}
     se = {"omega": osc.omega_.se, "Kq": Kq.se, "Kpot": Kpot.se if volts else 0.0}

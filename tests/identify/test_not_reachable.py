@@ -153,3 +153,29 @@ def test_flow_test_saturating_within_one_step_keys_kq_as_not_identifiable(tmp_pa
     assert key.quantities["Kpot"].reachable and key.quantities["Fc"].reachable
     notes: list[str] = []
     assert _flow_kq(load(ds), notes) is None and "within one input step" in notes[0]
+
+
+def test_a_dataset_without_a_friction_test_keys_b_and_fc_as_not_identifiable(tmp_path: Path,
+                                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """The default dataset with its friction test left out of the manifest: the key is written (it was refused),
+    B and Fc say why they are missing, and every other item is what a friction test reading no friction gives."""
+    bare, frictionless = tmp_path / "bare", tmp_path / "frictionless"
+    for ds in (bare, frictionless):
+        shutil.copytree(DEFAULT_DATASET, ds)
+    manifest = json.loads((bare / "manifest.json").read_text())
+    friction = manifest.pop("friction")
+    (bare / friction).unlink()
+    (bare / "manifest.json").write_text(json.dumps(manifest, indent=2))
+    speed = "".join(f"{s:g},0\n" for s in (-4.0, -2.0, -1.0, 1.0, 2.0, 4.0))
+    (frictionless / friction).write_text("speed [in/s],force [lbf]\n" + speed)
+    out = tmp_path / "key.json"
+    assert main(["key", str(bare), "-o", str(out)]) == 0
+    assert "the dataset has no friction test" in " ".join(capsys.readouterr().out.split())
+    key, reference = read_key(out), build_key(load(frictionless))
+    for name in ("B", "Fc"):
+        assert key.quantities[name].status == "not_identifiable" and key.quantities[name].value is None
+        assert reference.quantities[name].value == 0.0
+    assert key.identified and key.model.B == 0.0
+    for name, entry in reference.quantities.items():
+        if name not in ("B", "Fc"):
+            assert key.quantities[name].value == entry.value, name
