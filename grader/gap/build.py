@@ -91,8 +91,8 @@ def gap(by_run: list[RunGap]) -> Gap:
 
 
 def readoffs(runs: Sequence[GapRun], y_lin: Sequence[Array], y_aug: Sequence[Array] | None, base_kcrit: float | None,
-             gain_unit: str) -> list[ReadOff]:
-    """Measured vs predicted quantities students read off, per run."""
+             gain_unit: str, aug_kcrit: float | None = None) -> list[ReadOff]:
+    """Measured vs predicted quantities students read off, per run (critical gains in the runs' ``gain_unit``)."""
     out = []
     fns = {"step": [("steady_state_error", "in", metrics.steady_state_error), ("overshoot", "%", metrics.overshoot)],
            "ramp": [("steady_state_error", "in", metrics.steady_state_error)],
@@ -105,7 +105,8 @@ def readoffs(runs: Sequence[GapRun], y_lin: Sequence[Array], y_aug: Sequence[Arr
                                predicted=vals[1], augmented=vals[2] if y_aug is not None else None))
         if run.kind == "instability":
             out.append(ReadOff(quantity="critical_gain", run=run.name, unit=gain_unit, measured=r6(run.controller.Kp),
-                               predicted=None if base_kcrit is None else r6(base_kcrit)))
+                               predicted=None if base_kcrit is None else r6(base_kcrit),
+                               augmented=None if aug_kcrit is None or y_aug is None else r6(aug_kcrit)))
     return out
 
 

@@ -21,7 +21,7 @@ from grader.gap import baseline as baseline_mod
 from grader.gap import build, dfilter, evidence
 from grader.gap import noise as noise_mod
 from grader.gap import quantization as quant_mod
-from grader.gap import replay, spool
+from grader.gap import kcrit, replay, spool
 from grader.gap.backend import Backend, Point, worker
 from grader.gap.candidates import LEAST_LIMIT, NONE, NOT_FROM_RUNS, Candidate, make_candidates, saturation_can_act
 from grader.gap.crossval import CrossValidation
@@ -68,15 +68,13 @@ def _reference_kfb(ds: Dataset) -> float | None:
     return PotCalibration().fit(ds.calibration["position"], ds.calibration["voltage"]).Kpot_.value
 
 
-def _model_y(point: Point, runs: Sequence[GapRun], quant: quant_mod.Quantization | None, verdict: Verdict
-             ) -> list[Array]:
-    """The augmented model's simulation of every whole run: the fitted ``point``, with the ADC the readings show in
-    its loop (:func:`~grader.gap.quantization.loop_adc`; before, that model was the linear one alone)."""
+def _augmented(point: Point, quant: quant_mod.Quantization | None, verdict: Verdict) -> Point:
+    """The augmented model: the fitted ``point``, with the ADC the readings show in its loop
+    (:func:`~grader.gap.quantization.loop_adc`; before, that model was the linear one alone)."""
     bits = quant_mod.loop_adc(quant, verdict)
-    if bits is not None:
-        adc = EffectSet({quant_mod.QUANTIZATION: {"bits": float(bits)}})
-        point = replace(point, effects=point.effects.merged(adc))
-    return Backend(runs).all_runs([point])[0]
+    if bits is None:
+        return point
+    return replace(point, effects=point.effects.merged(EffectSet({quant_mod.QUANTIZATION: {"bits": float(bits)}})))
 
 
 def _verdict(rk: Ranking, names: list[str]) -> Verdict:
@@ -310,13 +308,16 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
         lg = evidence.loop_gain(ds, next(c for c in cands if c.effect == verdict.effect), base.params)
     verdict = evidence.viscous_from_loop_gain(evidence.viscous(verdict, fr), lg)
     verdict = evidence.quantized(evidence.viscous_unexcluded(verdict, fr, lg), quant)
-    y_aug = _model_y(aug, runs, quant, verdict)
+    aug = _augmented(aug, quant, verdict)
+    y_aug = Backend(runs).all_runs([aug])[0]
+    unstable = next((r for r in runs if r.kind == "instability"), None)
+    aug_kcrit = None if unstable is None else kcrit.critical_gain(aug, unstable)
     gain_unit = "dimensionless" if ds.manifest.feedback == "volts" else "V/in"
     diag = Diagnosis(
         dataset=ds.root.name, station=ds.manifest.station, inputs_sha256=ds.inputs_sha256,
         generated_by={"package": "grader", "version": __version__}, baseline=build.baseline_model(base),
         noise=build.noise_floor(noise), gap=gap,
-        readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit),
+        readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit, aug_kcrit),
         candidates=cands, verdict=verdict, quantization=build.quantization_info(quant),
         static_evidence={} if fr is None else fr.values(), loop_gain=lg, replay=replayed,
         notes=[*set_aside, *base.notes, *_notes(ds, runs, quant, noise, implied, demand), *([fast] if fast else [])],
