@@ -43,8 +43,11 @@ MAX_LOG_WIDTH = 20.0
 #: Cap on the autocorrelation's variance inflation of the Gauss–Newton intervals.
 MAX_INFLATION = 100.0
 #: Least standard error of an effect parameter, relative to its value: the fitter's model is not the rig's
-#: (the students' linear model, the exact-ZOH simulator), which biases the fit by about a per cent.
-MODEL_FORM = 0.02
+#: (the students' linear model, the exact-ZOH simulator), which biases the fit by about a per cent; a Coulomb
+#: level by more (its stick-slip events fall between samples, and a rig's friction law is never exactly Coulomb's):
+#: on benchmark run A, the 13 Coulomb levels at the 2 % floor were off by 3.5 % RMS, and 3 of them (5.8 to 6.9 %)
+#: fell outside their intervals.
+MODEL_FORM, MODEL_FORM_OF = 0.02, {"Fc": 0.04}
 
 
 def r6(x: float) -> float:
@@ -144,7 +147,7 @@ def candidate(state: FitState, cv: CrossValidation, before: CrossValidation, sco
     params = {}
     for j, fp in enumerate(c.params, start=N_LINEAR):
         v = th[j] * fp.scale
-        half = k * max(se[j] * fp.scale, MODEL_FORM * abs(v))
+        half = k * max(se[j] * fp.scale, MODEL_FORM_OF.get(fp.name, MODEL_FORM) * abs(v))
         params[c.label(fp)] = value(v, fp.unit, (max(fp.lo, v - half), min(fp.hi, v + half)))
     params.update({key: value(v, unit) for key, (v, unit) in c.held().items()})  # held: no interval
     lin = {}

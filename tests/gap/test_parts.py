@@ -235,3 +235,29 @@ def test_a_pair_beyond_none_starts_from_an_effect_that_acts(monkeypatch: pytest.
     diag.beyond_none([], Baseline(base, "test", "constructed"), found, rk, list(cands.values()), np.full(6, 0.01), 1e-4,
                            cv, None)
     assert firsts == ["valve_deadband" if fc == 0.0 else "coulomb_friction"]
+
+
+@pytest.mark.parametrize(("effect", "name", "floor"), [("coulomb_friction", "Fc", 0.04), ("valve_deadband", "width", 0.02),
+                                                        ("sampling_delay", "delay", 0.02)])
+def test_an_interval_is_at_least_its_model_form_floor(monkeypatch: pytest.MonkeyPatch, effect: str, name: str,
+                                                      floor: float) -> None:
+    """With no statistical error at all, an effect parameter's 95 % interval is still t·floor·value wide each way:
+    4 % for a Coulomb level (stick-slip between samples, and no rig's friction law is exactly Coulomb's), 2 % for
+    the rest."""
+    from scipy import stats
+
+    from grader.gap import build
+    from grader.gap.baseline import Baseline
+    from grader.gap.crossval import CrossValidation
+
+    base = load_station("default").params()
+    cand = next(c for c in make_candidates(base, [effect]) if c.effect == effect)
+    theta = np.array([0.0, 0.0, 0.0, 0.3])
+    monkeypatch.setattr(build, "_theta_se", lambda *a: np.zeros(theta.size))
+    runs = [_step_run(0.5)] * 6
+    state = FitState(cand, tuple(range(6)), theta, np.full(6, 0.01), jac=np.eye(6, theta.size))
+    cv = CrossValidation(np.full(6, 0.05), np.zeros((6, theta.size)))
+    entry = build.candidate(state, cv, cv, 0.0, runs, [1] * 6, Baseline(base, "runs", "test"))
+    v = entry.params[name]
+    half = stats.t.ppf(0.975, 5) * floor * v.value
+    assert v.interval == pytest.approx((v.value - half, v.value + half), rel=1e-5)
