@@ -26,6 +26,7 @@ from grader import __version__
 from grader.datasets import ControllerSpec, Manifest, RunSpec, write_dataset
 from grader.datasets.schema import RunKind
 from grader.errors import DatasetError, SimulationError, validation_message
+from grader.identify.oscillation import sustained as lasting
 from grader.model.effects import EffectSet
 from grader.model.params import Controller, RigParams
 from grader.model.rig import simulate_rig, simulate_rig_batch
@@ -67,16 +68,6 @@ class RunPlan:
     start: float = 0.1  # command starts [s]
 
 
-def _sustained(y: Array, t: Array, start: float) -> NDArray[np.bool_]:
-    """Runs whose oscillation at the end has not decayed and spans at least 0.04 in peak to peak
-    (20 % of the step; a loop that jumps straight into a saturated limit cycle is unstable too).
-    A friction or quantisation limit cycle of a few ADC counts, or noise, is not an unstable loop:
-    a student raises the gain further."""
-    early = np.ptp(y[:, (t >= start + 0.1) & (t < start + 0.3)], axis=1)
-    late = np.ptp(y[:, t >= t[-1] - 0.2], axis=1)
-    return (late > 0.9 * early) & (late > 0.04)
-
-
 #: Draws of the reading noise under which a gain's oscillation must last (see :func:`instability_gain`).
 NOISE_DRAWS = 3
 
@@ -105,7 +96,7 @@ def instability_gain(p: RigParams, effects: EffectSet, *, duration: float = 2.0,
         for seed in range(NOISE_DRAWS):
             y, _ = simulate_rig_batch(p, [Controller(float(k) * scale) for k in gains], t, r, effects,
                                       rng=np.random.default_rng(seed))
-            sustained &= _sustained(y, t, 0.1)
+            sustained &= lasting(y, t, 0.1, INSTABILITY_STEP)
         unstable = np.flatnonzero(sustained)
         return float(gains[unstable[0]]) if unstable.size else None
 
@@ -126,7 +117,8 @@ def _decided_by(sim: RunSimulator, p: RigParams, t: Array, r: Array, guess: floa
     scale = 1.0 if p.feedback == "volts" else p.Kpot
 
     def lasts(k: float) -> bool:
-        return all(_sustained(sim(p, Controller(k * scale), t, r, np.random.default_rng(seed))[0][None, :], t, 0.1)[0]
+        return all(lasting(sim(p, Controller(k * scale), t, r, np.random.default_rng(seed))[0][None, :], t, 0.1,
+                           INSTABILITY_STEP)[0]
                    for seed in range(NOISE_DRAWS))
 
     k = guess

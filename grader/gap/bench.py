@@ -106,17 +106,17 @@ def finest_board(station: Station) -> int:
 
 
 def effect_params(name: str, rng: np.random.Generator, strength: float | None = None,
-                  demand: float = 50.0, finest: int = 16) -> dict[str, float]:
+                  demand: float = 50.0, finest: int | None = None) -> dict[str, float]:
     """A magnitude for ``name``: random over its realistic range, or at ``strength`` × the range's top;
     a current limit lies between :data:`SATURATION_SHARE` of the step runs' ``demand`` [mA] and it; an ADC
-    has :data:`COARSEST_BITS` to ``finest`` bits (:func:`finest_board`)."""
+    has :data:`COARSEST_BITS` to ``finest`` bits (:func:`finest_board`; None: the realistic range's top)."""
     out: dict[str, float] = {}
     for p in EFFECTS[name].params:
         if p.name in ("order", "zeta"):
             continue
         lo, hi = p.typical
         if p.name == "bits":  # from the coarse boards to the finest whose step still matters
-            out[p.name] = float(rng.integers(COARSEST_BITS, min(finest, int(hi)) + 1))
+            out[p.name] = float(rng.integers(COARSEST_BITS, (int(hi) if finest is None else finest) + 1))
         elif p.name == "i_max":  # strength 1: SATURATION_SHARE of the demand, 0: the demand (or the amplifier's limit)
             s = rng.uniform(0.0, 1.0) if strength is None else strength
             top = min(demand, p.hi)

@@ -53,7 +53,7 @@ def tasks(cfg: BenchConfig, root: Path) -> list[Task]:
     for k, (names, strength) in enumerate(plan(cfg, rng)):
         station = random_station(base, rng)
         demand = step_demand(station)
-        finest = finest_board(station) if "sensor_quantization" in names else 16
+        finest = finest_board(station) if "sensor_quantization" in names else None
         truth = EffectSet({n: effect_params(n, rng, strength, demand, finest) for n in names if n != NONE})
         label = "+".join(names)
         out.append(Task(root / f"{k:04d}_{label}", label, station, truth, int(rng.integers(2**31)), strength,

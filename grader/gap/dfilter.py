@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from scipy.signal import lfilter
 
 from grader.datasets import Dataset
-from grader.gap.runs import MIN_RUNS, GapRun, controller_gain, seen_reading, u_resolution
+from grader.gap.runs import MIN_RUNS, GapRun, control_law, controller_gain, seen_reading, u_resolution
 from grader.model.rig_setup import DAC_LIMIT
 
 Array = NDArray[np.float64]
@@ -43,7 +43,7 @@ def derivative_filter(run: GapRun, T: float, k_fb: float) -> float | None:
     use = np.abs(run.u) < 0.95 * DAC_LIMIT
     if use.sum() < 20:
         return None
-    rest = c.Kp * e + c.Ki * T * np.cumsum(e)
+    rest = control_law(replace(c, Kd=0.0), e, T)  # the P and I terms, as the model's controller takes them
     diff = np.diff(e, prepend=0.0) / T
     terms = {a: c.Kd * lfilter([1.0 - a], [1.0, -a], diff) for a in (0.0, *POLES)}
     miss = {a: float(np.mean(np.abs(run.u - rest - d)[use])) for a, d in terms.items()}

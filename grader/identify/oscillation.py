@@ -15,6 +15,10 @@ The window also ends where friction stops the oscillation (its envelope fades): 
 past the critical gain may grow at large amplitude yet decay at small. A run without
 :data:`MIN_CYCLES` cycles above an ADC count (a friction or quantisation limit cycle, or no
 oscillation) is flagged: ``usable_`` is False, ``why_not_`` says why and nothing else is learned.
+
+:func:`sustained` is the students' test of an instability run, for a simulated one: whether its oscillation
+lasts (the benchmark's generator raises the gain until it does; the diagnosis reads the augmented model's
+critical gain with it).
 """
 
 from __future__ import annotations
@@ -37,6 +41,23 @@ SATURATION_SHARE, FADED, MIN_CYCLES = 0.8, 0.25, 8
 #: fewest readings in the window (a run that ends where the oscillation starts left one, and the six-parameter
 #: fit of a growing sinusoid failed on it, stopping the diagnosis of an 8-bit ADC's dataset)
 MIN_WINDOW = 20
+#: An oscillation lasts where its peak-to-peak over a run's last LATE s is at least LASTS of that over the EARLY
+#: window after its command, and at least SPANS of the command's step.
+EARLY, LATE, LASTS, SPANS = (0.1, 0.3), 0.2, 0.9, 0.2
+
+
+def sustained(y: Array, t: Array, start: float, step: float) -> NDArray[np.bool_]:
+    """For each run of positions ``y`` [in] (rows, at times ``t`` [s]; the command steps by ``step`` [in] at
+    ``start`` [s]), whether its oscillation at the end has not decayed and spans at least :data:`SPANS` of the step
+    peak to peak (a loop that jumps straight into a saturated limit cycle is unstable too). A friction or
+    quantisation limit cycle of a few ADC counts, or noise, is not an unstable loop: a student raises the gain
+    further. False for every run where a window holds no sample."""
+    early_window = (t >= start + EARLY[0]) & (t < start + EARLY[1])
+    late_window = t >= t[-1] - LATE
+    if not early_window.any() or not late_window.any():
+        return np.zeros(len(y), dtype=bool)
+    early, late = np.ptp(y[:, early_window], axis=1), np.ptp(y[:, late_window], axis=1)
+    return (late > LASTS * early) & (late > SPANS * step)
 
 
 def _envelope(t: Array, x: Array, f0: float) -> Array:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from grader.gap.backend import Point
-from grader.gap.kcrit import critical_gain, lasts
+from grader.gap.kcrit import critical_gain
 from grader.gap.runs import GapRun
 from grader.model import zloop
 from grader.model.effects import EffectSet
@@ -47,11 +47,3 @@ def test_a_whole_sample_delay_lowers_the_critical_gain_as_the_gain_margin_says(s
 def test_a_model_without_effects_has_its_exact_critical_gain(station: Station) -> None:
     p = station.params()
     assert critical_gain(Point(p), _instability_run(p)) == zloop.critical_gain(p)
-
-
-def test_an_oscillation_lasts_only_when_it_neither_dies_out_nor_stays_within_a_few_counts() -> None:
-    t = np.arange(0.0, 2.0, 0.001)
-    ring = np.sin(2 * np.pi * 30 * t)
-    assert lasts(0.2 + 0.1 * ring, 0.2) and lasts(0.2 + 0.1 * np.exp(0.1 * t) * ring, 0.2)
-    assert not lasts(0.2 + 0.1 * np.exp(-0.5 * t) * ring, 0.2)
-    assert not lasts(0.2 + 0.001 * ring, 0.2)  # a limit cycle of an ADC count or two: no instability

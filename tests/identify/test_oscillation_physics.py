@@ -9,7 +9,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from grader.identify import OscillationFit
-from grader.identify.oscillation import envelope_factor
+from grader.identify.oscillation import envelope_factor, sustained
 from grader.identify.pipeline import friction_decrement, saturation_amplitude
 from grader.model import zloop
 from grader.model.params import Controller
@@ -93,3 +93,12 @@ def test_an_oscillation_the_run_ends_on_is_not_usable_and_never_a_crash() -> Non
     y[late] = q + q * ((np.arange(late.sum()) // 4) % 2 == 0)  # a count's toggle in its last 0.14 s
     fit = OscillationFit().fit(t, y, start=0.10032)
     assert not fit.usable_ and "fewer than 8" in fit.why_not_
+
+
+def test_an_oscillation_lasts_only_when_it_neither_dies_out_nor_stays_within_a_few_counts() -> None:
+    t = np.arange(0.0, 2.0, 0.001)
+    ring = np.where(t >= 0.1, np.sin(2 * np.pi * 30 * t), 0.0)
+    y = 0.2 + np.stack([0.1 * ring, 0.1 * np.exp(0.1 * t) * ring, 0.1 * np.exp(-0.5 * t) * ring,
+                        0.001 * ring])  # lasting, growing, dying out, an ADC count or two
+    assert sustained(y, t, 0.1, 0.2).tolist() == [True, True, False, False]
+    assert sustained(y[:, :150], t[:150], 1.9, 0.2).tolist() == [False] * 4  # no sample after the command
