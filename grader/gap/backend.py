@@ -105,7 +105,8 @@ class Backend:
         """``replay``: each run is driven by its recorded controller output (every run must have one)."""
         self.runs = list(runs)
         self.executor, self.replay = executor, replay
-        self._inputs = [(r.controller, r.r, r.u if replay else r.noise) for r in self.runs]
+        self._inputs = [(r.controller, r.r, r.u + r.null_u) if replay else (r.controller, r.r + r.command_shift, r.noise)
+                        for r in self.runs]  # the valve's null in the model's inputs (grader.gap.null)
 
     def __call__(self, requests: Sequence[tuple[Point, int]]) -> list[Array]:
         """x_k [in] for each request, in order. With an executor, half the requests (:func:`_halves`) are

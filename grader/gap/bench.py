@@ -36,6 +36,7 @@ from grader.model.effects import EFFECTS, EffectSet
 from grader.stations import Station
 
 if TYPE_CHECKING:
+    from grader.model.params import Controller, RigParams
     from grader.synth import RunSimulator
 
 SWEEP = (1.0, 0.5, 0.25, 0.125, 0.0625)
@@ -176,6 +177,7 @@ class BenchConfig:
     friction_test: bool = True
     jobs: int = 1  # datasets generated and diagnosed at once (each diagnosis then on one core)
     cli_sample: int = 0  # datasets on which `grader diagnose` itself is timed, after the rest
+    valve_null: float = 0.0  # [mA] each dataset's valve null in the runs is drawn within ±valve_null (0: none)
 
 
 @dataclass
@@ -204,12 +206,31 @@ def station_runs(station: Station, effects: EffectSet | None, run_simulator: Run
             for plan in paper_runs(p, effects, run_simulator=run_simulator)]
 
 
+def with_null(simulate: RunSimulator, i0: float) -> RunSimulator:
+    """``simulate`` on a rig whose valve passes no flow at ``i0`` [mA] in the closed-loop runs, each run resting in
+    its own loop before its command: the amplifier's current Kamp·u + i0 is that of a controller output shifted by
+    u0 = i0/Kamp, which a P or PD loop at rest holds by reading its command shifted by u0/(Kp·k_fb), and a PI loop
+    with its integrator; the recorded u is the controller's own (shifted back by u0)."""
+    if i0 == 0.0:
+        return simulate
+
+    def run(p: RigParams, c: Controller, t: np.ndarray, r: np.ndarray, rng: np.random.Generator
+            ) -> tuple[np.ndarray, np.ndarray]:
+        u0 = i0 / p.Kamp
+        y, u = simulate(p, c, t, r + (u0 / (c.Kp * p.k_fb) if c.Ki == 0.0 else 0.0), rng)
+        return y, u - u0
+
+    return run
+
+
 def make_case_dataset(station: Station, effects: EffectSet, folder: Path, seed: int, *,
-                      friction_test: bool = True, generator: int = GENERATOR) -> Path:
+                      friction_test: bool = True, generator: int = GENERATOR, null: float = 0.0) -> Path:
     """A dataset from the independent solve_ivp path (see module docstring); the truth goes beside the folder.
-    Without ``friction_test``, the dataset has no friction test (no file, no manifest entry). ``generator`` 1
-    rebuilds a dataset as it was made before 27 November 2026 (the instability gain the compiled engine's, which
-    the independent rig did not always find unstable), for the regression tests pinned to such data."""
+    Without ``friction_test``, the dataset has no friction test (no file, no manifest entry). ``null`` [mA]: the
+    valve's null current in the closed-loop runs (:func:`with_null`; the flow test keeps the station's own).
+    ``generator`` 1 rebuilds a dataset as it was made before 27 November 2026 (the instability gain the compiled
+    engine's, which the independent rig did not always find unstable), for the regression tests pinned to such
+    data."""
     from grader.model.rig_ivp import ivp_run_simulator
     from grader.synth import TRUTH_FILE, make_dataset
 
@@ -217,7 +238,7 @@ def make_case_dataset(station: Station, effects: EffectSet, folder: Path, seed: 
     noisy = effects.merged(EffectSet({"sensor_noise": {"sigma": sigma}}))
     quiet = station.model_copy(update={"noise": {**station.noise, "position": "0 in"},
                                        "effects": effects.to_quantities()})
-    ivp = ivp_run_simulator(noisy)
+    ivp = with_null(ivp_run_simulator(noisy), null)
     make_dataset(quiet, folder, seed=seed, runs=station_runs(station, effects, ivp if generator >= 2 else None),
                  run_simulator=ivp)
     truth_file = folder.parent / f"{folder.name}.truth.json"  # blind: the truth stays with the benchmark
@@ -227,8 +248,9 @@ def make_case_dataset(station: Station, effects: EffectSet, folder: Path, seed: 
         data = json.loads(manifest.read_text(encoding="utf-8"))
         (folder / data.pop("friction")).unlink()
         manifest.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
-    truth_file.write_text(json.dumps({"effects": noisy.to_quantities(), "station": station.model_dump(mode="json"),
-                                      "generator": generator}, indent=2) + "\n", encoding="utf-8")
+    truth = {"effects": noisy.to_quantities(), "station": station.model_dump(mode="json"), "generator": generator}
+    truth_file.write_text(json.dumps({**truth, **({"valve_null": f"{null!r} mA"} if null else {})}, indent=2) + "\n",
+                          encoding="utf-8")
     return folder
 
 

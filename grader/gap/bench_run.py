@@ -43,11 +43,13 @@ class Task:
     seed: int
     strength: float | None
     friction_test: bool
+    null: float = 0.0  # [mA] the valve's null in the runs
 
 
 def tasks(cfg: BenchConfig, root: Path) -> list[Task]:
     """Every planned dataset, drawn in order from the seed (the same plan whatever is reused)."""
     rng = np.random.default_rng(cfg.seed)
+    nulls = np.random.default_rng([cfg.seed, 1])  # apart: the same rigs and effects with and without a null
     base = load_station("default")
     out = []
     for k, (names, strength) in enumerate(plan(cfg, rng)):
@@ -56,8 +58,9 @@ def tasks(cfg: BenchConfig, root: Path) -> list[Task]:
         finest = finest_board(station) if "sensor_quantization" in names else None
         truth = EffectSet({n: effect_params(n, rng, strength, demand, finest) for n in names if n != NONE})
         label = "+".join(names)
+        null = float(nulls.uniform(-cfg.valve_null, cfg.valve_null)) if cfg.valve_null else 0.0
         out.append(Task(root / f"{k:04d}_{label}", label, station, truth, int(rng.integers(2**31)), strength,
-                        cfg.friction_test))
+                        cfg.friction_test, null))
     return out
 
 
@@ -72,7 +75,8 @@ def _reusable(task: Task) -> bool:
         return False
     kept_truth = EffectSet.from_quantities(kept.get("effects")).without("sensor_noise")
     return kept.get("generator") == GENERATOR and kept.get("station") == task.station.model_dump(mode="json") and \
-        kept_truth.to_quantities() == task.truth.to_quantities()
+        kept_truth.to_quantities() == task.truth.to_quantities() and \
+        kept.get("valve_null") == (f"{task.null!r} mA" if task.null else None)
 
 
 def run_task(task: Task, parallel: bool = True) -> Case:
@@ -82,7 +86,8 @@ def run_task(task: Task, parallel: bool = True) -> Case:
 
     if not _reusable(task):
         shutil.rmtree(task.folder, ignore_errors=True)
-        make_case_dataset(task.station, task.truth, task.folder, task.seed, friction_test=task.friction_test)
+        make_case_dataset(task.station, task.truth, task.folder, task.seed, friction_test=task.friction_test,
+                          null=task.null)
     t0 = time.perf_counter()
     try:
         d = analyse(task.folder, parallel=parallel).diagnosis

@@ -39,6 +39,9 @@ FIXED: Mapping[str, Mapping[str, float]] = {"valve_dynamics": {"order": 1.0, "ze
 SMOOTH_STEPS, SWITCHING_STEPS = (1e-4, 1e-3), (2e-3, 2e-2)
 SWITCHING = frozenset({"coulomb_friction", "valve_hysteresis", "valve_deadband", "valve_saturation"})
 GRID_POINTS = 5
+#: :meth:`Candidate.strength` below which an effect barely acts: named neither as a second effect
+#: (:mod:`grader.gap.pairs`) nor let stand for ``none`` at a worse optimum (:mod:`grader.gap.search`).
+WEAK_STRENGTH = 0.06
 #: The linear model's parameters re-fitted with every candidate (log ratios lead θ), with their units.
 LINEAR: tuple[tuple[str, str], ...] = (("beta_over_Vt", "psi/in**3"), ("Kce", "in**3/s/psi"), ("Kq", "in**3/s/mA"))
 N_LINEAR = len(LINEAR)

@@ -12,6 +12,9 @@ from contextlib import contextmanager
 from grader.errors import DiagnosisError
 from grader.outpaths import output_folder
 
+#: Largest ``bench-gap --valve-null`` [mA]: a valve far off its null is a fault to re-trim, not a rig to diagnose.
+MAX_BENCH_NULL = 1.0
+
 
 def _effects(text: str | None, known: tuple[str, ...] | None = None) -> list[str] | None:
     """Comma-separated effect names, each one of ``known`` (default: the candidate effects)."""
@@ -66,12 +69,15 @@ def _bench(args: argparse.Namespace) -> int:
     from grader.gap.bench import TRUTHS, BenchConfig
     from grader.gap.bench_run import run_benchmark
 
+    if not 0.0 <= args.valve_null <= MAX_BENCH_NULL:
+        raise DiagnosisError(f"--valve-null must be between 0 and {MAX_BENCH_NULL:g} mA; got {args.valve_null:g}")
     if args.n < 1 or args.pairs < 0 or args.jobs < 1 or args.time_cli < 0:
         raise DiagnosisError(f"--n and --jobs must be at least 1, --pairs and --time-cli at least 0; got {args.n}, "
                              f"{args.jobs}, {args.pairs} and {args.time_cli}")
     cfg = BenchConfig(n=args.n, pairs=args.pairs, seed=args.seed, effects=tuple(_effects(args.effects, TRUTHS) or ()) or None,
                       sweep=args.sweep, workdir=output_folder(args.workdir) if args.workdir else None,
-                      friction_test=not args.no_friction_test, jobs=args.jobs, cli_sample=args.time_cli)
+                      friction_test=not args.no_friction_test, jobs=args.jobs, cli_sample=args.time_cli,
+                      valve_null=args.valve_null)
     print(run_benchmark(cfg).text())
     return 0
 
@@ -108,4 +114,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also time `grader diagnose` itself (a new process, report included) on K of the datasets")
     p.add_argument("--no-friction-test", action="store_true",
                    help="datasets without the friction test: the diagnosis must find friction from the runs alone")
+    p.add_argument("--valve-null", type=float, default=0.0, metavar="MA",
+                   help="each dataset's valve rests off its null by a current drawn within ±MA mA in the closed-loop "
+                        "runs (not an effect: 'none' stays the right verdict; default: 0, the runs hold no null)")
     p.set_defaults(handler=_bench)

@@ -20,6 +20,7 @@ from grader.datasets import Dataset, load
 from grader.gap import baseline as baseline_mod
 from grader.gap import build, dfilter, evidence
 from grader.gap import noise as noise_mod
+from grader.gap import null as null_mod
 from grader.gap import quantization as quant_mod
 from grader.gap import kcrit, replay, spool
 from grader.gap.backend import Backend, Point, worker
@@ -290,6 +291,8 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     base = baseline_mod.choose(ds, runs, key=key, implied_kfb=implied)
     noise = noise_mod.estimate(runs)
     quant = quant_mod.assess(runs, noise, base.params.Kpot)
+    null = null_mod.estimate(runs, base.params.Kamp, base.params.k_fb, 0.0 if quant is None else quant.step)
+    runs = null_mod.held(runs, null, base.params.Kamp, base.params.k_fb)
     backend = Backend(runs)
     y_lin = backend.all_runs([Point(base.params)])[0]
     segs = [segments_of(run, noise.floor) for run in runs]
@@ -320,7 +323,9 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
         readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit, aug_kcrit),
         candidates=cands, verdict=verdict, quantization=build.quantization_info(quant),
         static_evidence={} if fr is None else fr.values(), loop_gain=lg, replay=replayed,
-        notes=[*set_aside, *base.notes, *_notes(ds, runs, quant, noise, implied, demand), *([fast] if fast else [])],
+        valve_null=None if null is None else build.value(null.i0, "mA", null.interval()),
+        notes=[*set_aside, *base.notes, *_notes(ds, runs, quant, noise, implied, demand), *([fast] if fast else []),
+               *([null.text()] if null else [])],
     )
     return Analysis(diag, runs, segs, y_lin, y_aug)
 

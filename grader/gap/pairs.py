@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from grader.gap import baseline as baseline_mod
 from grader.gap import build, replay
-from grader.gap.candidates import NONE, NOT_FROM_RUNS, Candidate
+from grader.gap.candidates import NONE, NOT_FROM_RUNS, WEAK_STRENGTH, Candidate
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.lm import sumsq
@@ -39,7 +39,7 @@ Array = NDArray[np.float64]
 #: 0.03 mA that only lets the fit follow the noise's walk through a backlash names nothing). With every verdict
 #: searched for a pair on benchmark seed 300 (250 datasets with one effect or none, 60 with two), this bar and
 #: RESIDUAL_RATIO named 3 more pairs than 0.5 and 1.5 and no second effect on a single-effect dataset.
-SECOND_REL_GAIN, SECOND_GAIN, SECOND_STRENGTH = 0.10, 0.25, 0.06
+SECOND_REL_GAIN, SECOND_GAIN, SECOND_STRENGTH = 0.10, 0.25, WEAK_STRENGTH
 #: A ``none`` verdict whose linear model leaves this many times the noise's mean square searches a pair.
 NONE_GAP = 4.0
 #: A second effect the closed loop's bar misses is named where, replayed (:func:`_replayed_second`), the verdict

@@ -86,6 +86,10 @@ class GapRun:
     start: float
     scale: float
     noise: Array
+    #: the valve's null current as a controller output [V], and the command shift [in] that holds it in a P or PD
+    #: loop (:mod:`grader.gap.null`): the model's inputs, not the rig's
+    null_u: float = 0.0
+    command_shift: float = 0.0
 
     @property
     def n(self) -> int:
@@ -137,7 +141,7 @@ def start_offset_note(run: GapRun, floor: float) -> str | None:
     """A note where ``run`` does not start at rest at its command (the mean of its first readings off the first
     command by more than :data:`START_NOISE` × the noise ``floor`` [in] and :data:`START_SHARE` of the command's
     range), else None: the logger started late, or the rig was still moving or held off by friction."""
-    off = float(np.mean(run.y[:START_ROWS]) - run.r[0])
+    off = float(np.mean(run.y[:START_ROWS]) - run.r[0] - run.command_shift)
     if abs(off) <= max(START_NOISE * floor, START_SHARE * float(np.ptp(run.r))):
         return None
     return (f"run {run.name} starts {off:+.3g} in from its command, where the model starts it at rest: the logger "
@@ -372,5 +376,4 @@ def truncated(run: GapRun, duration: float) -> GapRun:
     if n >= run.n:
         return run
     u = None if run.u is None else run.u[:n]
-    return GapRun(run.name, run.kind, run.controller, run.t[:n], run.r[:n], run.y[:n], u, run.start, run.scale,
-                  run.noise[:n])
+    return replace(run, t=run.t[:n], r=run.r[:n], y=run.y[:n], u=u, noise=run.noise[:n])

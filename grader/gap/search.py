@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from grader.gap.backend import Backend
-from grader.gap.candidates import N_LINEAR, NONE, Candidate, combine
+from grader.gap.candidates import N_LINEAR, NONE, WEAK_STRENGTH, Candidate, combine
 from grader.gap.crossval import CrossValidation, cross_validate
 from grader.gap.fit import BatchFitter, FitState, grid_starts
 from grader.gap.objective import RunObjective
@@ -122,15 +122,17 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
 
 
 def _none_from_neutral(full: BatchFitter, ends: list[FitState], ref: int) -> FitState:
-    """``none``'s fit (``ends[ref]``), started once more from the linear coordinates of the best effect that ended at
-    its neutral magnitude below it: that effect is ``none`` at a better optimum (an independent simulator's rig with
-    no effect had Coulomb friction at Fc = 0 fit the runs 2.6 times better than ``none``, which let a spool lag at
-    its least fitted value be named)."""
-    at_neutral = [s for s in ends if s.candidate.params and s.cost < ends[ref].cost and all(
-        abs(float(m) - p.neutral) < 1e-9 for m, p in zip(s.theta[N_LINEAR:], s.candidate.params))]
-    if not at_neutral:
+    """``none``'s fit (``ends[ref]``), started once more from the linear coordinates of the best effect that ended
+    below it barely acting (strength below :data:`~grader.gap.candidates.WEAK_STRENGTH`, its neutral magnitude
+    included): that effect is ``none`` at a better optimum, or next to one. An independent simulator's rig with no
+    effect had Coulomb friction at Fc = 0 fit the runs 2.6 times better than ``none``, which let a spool lag at its
+    least fitted value be named; with the valve's null held in the runs, another had ``none`` fit 2.6 times worse
+    than Coulomb friction at Fc = 0.013 lbf, which was named. Started there, ``none`` fit as well as either."""
+    weak = [s for s in ends if s.candidate.params and s.cost < ends[ref].cost
+            and s.candidate.strength(s.theta) < WEAK_STRENGTH]
+    if not weak:
         return ends[ref]
-    start = min(at_neutral, key=lambda s: s.cost)
+    start = min(weak, key=lambda s: s.cost)
     none = ends[ref]
     again = full.fit(full.rebase([replace(none, theta=np.asarray(start.theta[:N_LINEAR]), jac=None, done=False)]),
                      rounds=FULL_ROUNDS)[0]

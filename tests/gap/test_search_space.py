@@ -4,6 +4,7 @@ linear region under an early saturation, and the static tests' say on viscous fr
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +16,7 @@ from grader.gap.bench import ERROR, BenchConfig
 from grader.gap.bench_report import render
 from grader.gap.bench import GENERATOR
 from grader.gap.bench_run import _reusable, run_task, tasks, time_cli
-from grader.gap.candidates import NOT_FROM_RUNS, make_candidates
+from grader.gap.candidates import NOT_FROM_RUNS, WEAK_STRENGTH, make_candidates
 from grader.gap.evidence import viscous_unexcluded
 from grader.gap.schema import LoopGainInfo, Value, Verdict
 from grader.identify.flow import FlowGainFit
@@ -101,6 +102,15 @@ def test_the_benchmark_plan_is_the_seeds_and_a_dataset_is_reused_only_when_it_is
     kept["effects"] = {"coulomb_friction": {"Fc": "9 lbf"}}
     truth.write_text(json.dumps(kept), encoding="utf-8")
     assert not _reusable(task)
+    # a valve null in the runs: drawn apart, so that the rigs, effects and seeds are the same with and without
+    nulled = tasks(replace(cfg, valve_null=0.05), tmp_path)
+    assert [(t.station, t.truth.to_quantities(), t.seed) for t in nulled] == \
+        [(t.station, t.truth.to_quantities(), t.seed) for t in first]
+    assert all(t.null == 0.0 for t in first) and all(0.0 < abs(t.null) <= 0.05 for t in nulled)
+    assert len({t.null for t in nulled}) == len(nulled)
+    kept["effects"], kept["valve_null"] = task.truth.to_quantities(), f"{nulled[2].null!r} mA"
+    truth.write_text(json.dumps(kept), encoding="utf-8")
+    assert _reusable(nulled[2]) and not _reusable(task)  # a dataset with a null is not one without
 
 
 def test_a_benchmark_dataset_whose_diagnosis_fails_is_a_counted_miss_not_the_end(tmp_path: Path) -> None:
@@ -148,16 +158,14 @@ class _Refit:
         return states
 
     def fit(self, states, rounds):  # noqa: ANN001, ANN201, ARG002
-        from dataclasses import replace
-
         self.starts += [s.theta.copy() for s in states]
         return [replace(s, res=np.array([np.sqrt(self.cost_of(s.theta))])) for s in states]
 
 
-def test_none_starts_again_from_an_effect_that_ended_at_no_strength_below_it() -> None:
-    """An effect fitted at its neutral magnitude is ``none`` at another optimum: where it ends below ``none``, ``none``
-    starts once more from its linear coordinates (and keeps the better end); an effect that acts, or the orifice law
-    (no magnitude), is no such start."""
+def test_none_starts_again_from_an_effect_that_ended_barely_acting_below_it() -> None:
+    """An effect fitted at its neutral magnitude, or barely above it, is ``none`` at (or next to) another optimum:
+    where it ends below ``none``, ``none`` starts once more from the best such effect's linear coordinates (and keeps
+    the better end); an effect that acts, or the orifice law (no magnitude: it always acts), is no such start."""
     from grader.gap.fit import FitState
     from grader.gap.search import _none_from_neutral
 
@@ -166,17 +174,22 @@ def test_none_starts_again_from_an_effect_that_ended_at_no_strength_below_it() -
     def state(name: str, lin: list[float], mags: list[float], cost: float) -> FitState:
         return FitState(cands[name], (0,), np.array(lin + mags), np.array([np.sqrt(cost)]))
 
-    ends = [state("none", [0.0, 0.0, 0.0], [], 0.0075),
-            state("coulomb_friction", [0.03, -0.04, 0.0], [0.0], 0.0029),  # Fc = 0: none elsewhere
-            state("valve_dynamics", [0.07, -0.05, 0.0], [0.0222], 0.0029),  # a lag just above its floor: acts
-            state("pressure_flow_nonlinearity", [0.1, 0.1, 0.1], [], 0.001)]  # no magnitude: always acts
+    none = state("none", [0.0, 0.0, 0.0], [], 0.0075)
+    coulomb = state("coulomb_friction", [0.03, -0.04, 0.0], [0.0], 0.0029)  # Fc = 0: none elsewhere
+    lag = state("valve_dynamics", [0.07, -0.05, 0.0], [0.0222], 0.0027)  # a lag just above its floor: barely acts
+    deadband = state("valve_deadband", [0.2, 0.0, 0.0], [0.3], 0.002)  # 30 % of its range: acts
+    orifice = state("pressure_flow_nonlinearity", [0.1, 0.1, 0.1], [], 0.001)  # no magnitude: always acts
+    assert lag.candidate.strength(lag.theta) < WEAK_STRENGTH <= deadband.candidate.strength(deadband.theta)
     fitter = _Refit(lambda th: 0.0028 if th[0] == 0.03 else 0.01)
-    again = _none_from_neutral(fitter, ends, 0)  # type: ignore[arg-type]
+    again = _none_from_neutral(fitter, [none, coulomb, deadband, orifice], 0)  # type: ignore[arg-type]
     assert [list(s) for s in fitter.starts] == [[0.03, -0.04, 0.0]]
     assert again.cost == pytest.approx(0.0028) and again.candidate.effect == "none"
+    from_lag = _Refit(lambda th: 0.0026 if th[0] == 0.07 else 0.01)
+    assert _none_from_neutral(from_lag, [none, coulomb, lag, deadband], 0).cost == pytest.approx(0.0026)  # type: ignore[arg-type]
+    assert [list(s) for s in from_lag.starts] == [[0.07, -0.05, 0.0]]  # the best of the weak ones, once
     worse = _Refit(lambda th: 0.009)
-    assert _none_from_neutral(worse, ends, 0) is ends[0]  # type: ignore[arg-type]
-    assert _none_from_neutral(_Refit(lambda th: 0.0), ends[:1] + ends[2:], 0) is ends[0]  # type: ignore[arg-type]
+    assert _none_from_neutral(worse, [none, coulomb], 0) is none  # type: ignore[arg-type]
+    assert _none_from_neutral(_Refit(lambda th: 0.0), [none, deadband, orifice], 0) is none  # type: ignore[arg-type]
 
 
 def test_beta_over_vt_fits_stay_below_the_ceiling_but_never_below_the_baseline() -> None:
