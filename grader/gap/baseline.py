@@ -142,7 +142,7 @@ def fit_loop(runs: Sequence[GapRun], p0: RigParams, *, fit_kq: bool, bv_span: fl
     def resid(z: Array) -> Array:
         p = model(z)
         ys = position_batch([p] * len(used), [run.controller for run, _ in used], [NO_EFFECTS] * len(used),
-                            [run.r[:n] for run, n in used]).run()
+                            [run.r[:n] + run.command_shift for run, n in used]).run()  # the valve's null held
         return np.concatenate([(y - run.y[:n]) / (run.scale * np.sqrt(n)) for y, (run, n) in zip(ys, used)])
 
     return model(least_squares(resid, np.zeros(span.size), method="lm", x_scale="jac").x)

@@ -208,17 +208,17 @@ def station_runs(station: Station, effects: EffectSet | None, run_simulator: Run
 
 def with_null(simulate: RunSimulator, i0: float) -> RunSimulator:
     """``simulate`` on a rig whose valve passes no flow at ``i0`` [mA] in the closed-loop runs, each run resting in
-    its own loop before its command: the amplifier's current Kamp·u + i0 is that of a controller output shifted by
-    u0 = i0/Kamp, which a P or PD loop at rest holds by reading its command shifted by u0/(Kp·k_fb), and a PI loop
-    with its integrator; the recorded u is the controller's own (shifted back by u0)."""
+    its own loop before its command: the valve sees Kamp·u − i0, the current of a controller output shifted by
+    −u0 = −i0/Kamp, which a P or PD loop at rest holds by reading its command shifted by −u0/(Kp·k_fb), and a PI
+    loop with its integrator; the recorded u is the controller's own (shifted back by u0)."""
     if i0 == 0.0:
         return simulate
 
     def run(p: RigParams, c: Controller, t: np.ndarray, r: np.ndarray, rng: np.random.Generator
             ) -> tuple[np.ndarray, np.ndarray]:
         u0 = i0 / p.Kamp
-        y, u = simulate(p, c, t, r + (u0 / (c.Kp * p.k_fb) if c.Ki == 0.0 else 0.0), rng)
-        return y, u - u0
+        y, u = simulate(p, c, t, r - (u0 / (c.Kp * p.k_fb) if c.Ki == 0.0 else 0.0), rng)
+        return y, u + u0
 
     return run
 

@@ -288,11 +288,12 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     ds, runs, filtered, unchecked = dfilter.set_aside(ds, runs, k_fb, T)
     set_aside += filtered
     implied = check_gains(runs, k_fb, T, unchecked)
-    base = baseline_mod.choose(ds, runs, key=key, implied_kfb=implied)
     noise = noise_mod.estimate(runs)
+    null_kfb = k_fb if k_fb is not None else implied  # the null is in the runs before the baseline is fitted to them
+    null = null_mod.estimate(runs, ds.given["Kamp"], null_kfb, noise.adc_step or 0.0)
+    runs = null_mod.held(runs, null, ds.given["Kamp"], null_kfb)
+    base = baseline_mod.choose(ds, runs, key=key, implied_kfb=implied)
     quant = quant_mod.assess(runs, noise, base.params.Kpot)
-    null = null_mod.estimate(runs, base.params.Kamp, base.params.k_fb, 0.0 if quant is None else quant.step)
-    runs = null_mod.held(runs, null, base.params.Kamp, base.params.k_fb)
     backend = Backend(runs)
     y_lin = backend.all_runs([Point(base.params)])[0]
     segs = [segments_of(run, noise.floor) for run in runs]

@@ -1,24 +1,28 @@
 """The valve's null current in the runs, read where the runs rest.
 
-A servo valve's null is never exactly at zero current. Closed, the loop rests where the valve passes no
-flow: a P or PD loop with its position off the command by δ = i0/(Kamp·Kp·k_fb), a PI loop with its
-integrator holding −i0/Kamp, so that the controller output u rests at −i0/Kamp [V] in every run. A model
-started at rest at the command with no current lacks it, and the P runs' steady-state errors then differ
-from the rig's by δ ∝ 1/Kp: on an independent simulator's rigs with no effect, nulls of 0.005 and 0.017 mA
-were named Coulomb friction and viscous friction (a loop-gain deficit of 3.1 standard errors), and nulls of
-±0.1 and 0.3 mA had 6 of 12 such rigs named Coulomb friction, a deadband, hysteresis or a current limit.
+A servo valve's null is never exactly at zero current: it passes no flow at some current i0 [mA] (the flow
+test's null offset, in the same sense). Closed, the loop rests there: a P or PD loop with its position off the
+command by i0/(Kamp·Kp·k_fb) (the controller output at rest is then i0/Kamp), a PI loop with its integrator
+holding i0/Kamp. A model started at rest at the command with no current lacks it, and the P runs'
+steady-state errors then differ from the rig's by an amount ∝ 1/Kp: on an independent simulator's rigs with no
+effect, nulls of 0.005 and 0.017 mA were named Coulomb friction and viscous friction (a loop-gain deficit of 3.1
+standard errors), and nulls of 0.1 mA either way and of 0.3 mA had 6 of 12 such rigs named Coulomb friction, a
+deadband, hysteresis or a current limit.
 
-A run rests before its command, and a P or PD step run again over the last :data:`END_SHARE` of its samples
-(an instability run, at its critical gain, never rests). Each rest of at least :data:`MIN_REST` samples whose
-halves agree (within :data:`SETTLING_Z` standard errors: else the rig is still settling) gives i0:
-−Kamp·mean(u) where u is recorded, else (a P or PD run) Kamp·Kp·k_fb·mean(y − r), with the standard error of a
-mean of AR(1) samples. Their inverse-variance mean is the rig's null where it lies :data:`NULL_Z` standard
-errors or more from 0 and the rests agree on it (χ² of their spread below its :data:`AGREE` quantile). Friction
-holds a rig wherever its last motion stopped, on the side it came from: a step run that rests on one side
-before its command and on the other after it disagrees with itself, which a null cannot do. The model then has
-the null in every run (:attr:`GapRun.null_u`, :attr:`GapRun.command_shift`), and a note says so. Quantised
-readings at rest average to up to half a lattice step off where the rig rests, so a null that holds no P or
-PD run half a step off its command is none.
+A run rests before its command, and a P or PD step run again over the last :data:`END_SHARE` of its samples where
+its command holds still. An instability run's rests are not read: at its critical gain the loop is so lightly
+damped that its readings at rest wander far from AR(1) noise, and their standard error is not to be trusted.
+Each rest of at least :data:`MIN_REST` samples whose halves agree (within :data:`SETTLING_Z` standard errors: else
+the rig is still settling) gives i0: Kamp·mean(u) where u is recorded, else (a P or PD run)
+−Kamp·Kp·k_fb·mean(y − r), with the standard error of a mean of AR(1) samples, at least that of the readings'
+lattice (step/√12). Their inverse-variance mean is the rig's null where it lies :data:`NULL_Z` standard errors or
+more from 0 and the rests agree on it (χ² of their spread below its :data:`AGREE` quantile). Friction holds a
+rig wherever its last motion stopped, on the side it came from: a step run that rests on one side before its
+command and on the other after it disagrees with itself, which a null cannot do. Quantised readings at rest
+average to up to half a lattice step off where the rig rests, so a null that holds no P or PD run half a step
+off its command is none. The model then has the null in every run (:attr:`GapRun.null_u`,
+:attr:`GapRun.command_shift`: exact while neither the DAC nor a current limit clips, where the model clips the
+shifted signal rather than the amplifier's own), and a note says so.
 """
 
 from __future__ import annotations
@@ -65,38 +69,45 @@ class Null:
         return (f"the valve passes no flow at {self.i0:.3g} mA, not at 0 (its null; 95 % interval {lo:.3g} to {hi:.3g} "
                 f"mA, read where the runs rest: {', '.join(self.rests)}): a P loop rests off its command by "
                 "i0/(Kamp·Kp·k_fb) and a PI loop holds it with its integrator; every model here has it in every run, "
-                "and trimming the valve's null removes it")
+                "and trimming the valve's null would remove it")
 
 
-def _mean_se(x: np.ndarray) -> tuple[float, float]:
-    """Mean of ``x`` and its standard error, inflated for lag-1 autocorrelation."""
+def _mean_se(x: np.ndarray, floor: float = 0.0) -> tuple[float, float]:
+    """Mean of ``x`` and its standard error, inflated for lag-1 autocorrelation and at least ``floor`` (samples
+    all equal have no spread: not the round-off of subtracting their mean)."""
+    if float(np.ptp(x)) == 0.0:
+        return float(x[0]), floor
     d = x - x.mean()
-    var = float(d @ d) / max(x.size - 1, 1)
-    rho = float(d[1:] @ d[:-1]) / float(d @ d) if float(d @ d) > 0 else 0.0
-    rho = min(max(rho, 0.0), MAX_RHO)
-    return float(x.mean()), float(np.sqrt(var / x.size * (1.0 + rho) / (1.0 - rho)))
+    ss = float(d @ d)
+    rho = min(max(float(d[1:] @ d[:-1]) / ss, 0.0), MAX_RHO) if ss > 0 else 0.0
+    se = math.sqrt(ss / max(x.size - 1, 1) / x.size * (1.0 + rho) / (1.0 - rho))
+    return float(x.mean()), max(se, floor)
 
 
-def _reading(run: GapRun, at: np.ndarray, Kamp: float, k_fb: float | None) -> tuple[float, float] | None:
-    """(i0, standard error) [mA] from the samples ``at`` where the run rests, or None where they give none."""
+def _reading(run: GapRun, at: np.ndarray, Kamp: float, k_fb: float, step: float) -> tuple[float, float] | None:
+    """(i0, standard error) [mA] from the samples ``at`` where the run rests (``step`` [in]: the readings' lattice,
+    0 if none), or None where they give none."""
+    if run.u is not None:
+        at = at & np.isfinite(run.u)
     if int(at.sum()) < MIN_REST:
         return None
     if run.u is not None:
-        x, gain = run.u[at], -Kamp
-    elif run.controller.Ki != 0.0 or k_fb is None:
+        x, gain, lattice = run.u[at], Kamp, step * abs(run.controller.Kp) * k_fb
+    elif run.controller.Ki != 0.0:
         return None
     else:
-        x, gain = run.y[at] - run.r[at], Kamp * run.controller.Kp * k_fb
-    (m1, s1), (m2, s2) = _mean_se(x[: x.size // 2]), _mean_se(x[x.size // 2:])
+        x, gain, lattice = run.y[at] - run.r[at], -Kamp * run.controller.Kp * k_fb, step
+    floor = lattice / math.sqrt(12.0)
+    (m1, s1), (m2, s2) = _mean_se(x[: x.size // 2], floor), _mean_se(x[x.size // 2:], floor)
     if abs(m2 - m1) > SETTLING_Z * math.hypot(s1, s2):  # still settling: no rest
         return None
-    m, se = _mean_se(x)
-    return gain * m, abs(gain) * se
+    m, se = _mean_se(x, floor)
+    return (gain * m, abs(gain) * se) if se > 0.0 else None  # constant readings of unknown resolution: no reading
 
 
 def _rests(run: GapRun) -> list[tuple[str, np.ndarray]]:
-    """Where ``run`` rests: before its command, and a P or PD step run also over its last :data:`END_SHARE` (an
-    instability run, at its critical gain, never rests)."""
+    """Where ``run`` rests (module docstring): before its command, and a P or PD step run also over its last
+    :data:`END_SHARE` where its command holds still."""
     if run.kind == "instability":
         return []
     out = [(f"{run.name} before its command", run.t < run.start)]
@@ -104,17 +115,18 @@ def _rests(run: GapRun) -> list[tuple[str, np.ndarray]]:
         after = np.flatnonzero(run.t >= run.start)
         end = np.zeros(run.t.size, dtype=bool)
         end[after[int((1.0 - END_SHARE) * after.size):]] = True
-        out.append((f"{run.name} at its end", end))
+        if end.any() and float(np.ptp(run.r[end])) == 0.0:
+            out.append((f"{run.name} at its end", end))
     return out
 
 
 def estimate(runs: Sequence[GapRun], Kamp: float, k_fb: float | None, step: float = 0.0) -> Null | None:
-    """The rig's null (module docstring), or None where the runs show none; ``Kamp`` [mA/V], ``k_fb`` [V/in] or
-    1 (None: not known, so only runs with u give it). ``step`` [in]: the readings' lattice step, if quantised; a
-    null that holds no P or PD run at least half a step off its command is below what the readings resolve (the
-    mean of quantised readings at rest is off by up to half a step)."""
-    read = [(name, v) for r in runs for name, at in _rests(r) for v in [_reading(r, at, Kamp, k_fb)]
-            if v is not None and v[1] > 0.0]
+    """The rig's null (module docstring), or None where the runs show none; ``Kamp`` [mA/V], ``k_fb`` [V/in] or 1
+    (None: not known, and no null is read), ``step`` [in]: the readings' lattice step, if quantised."""
+    if k_fb is None:
+        return None
+    read = [(name, v) for r in runs for name, at in _rests(r) for v in [_reading(r, at, Kamp, k_fb, step)]
+            if v is not None]
     if not read:
         return None
     i0s, ses = np.array([v[0] for _, v in read]), np.array([v[1] for _, v in read])
@@ -124,16 +136,17 @@ def estimate(runs: Sequence[GapRun], Kamp: float, k_fb: float | None, step: floa
     if abs(i0) < NULL_Z * se or (len(read) > 1 and spread > stats.chi2.ppf(AGREE, len(read) - 1)):
         return None
     p_gains = [r.controller.Kp for r in runs if r.controller.Ki == 0.0 and r.controller.Kp > 0.0]
-    if step > 0.0 and k_fb and p_gains and abs(i0) < Kamp * min(p_gains) * k_fb * step / 2.0:
+    if step > 0.0 and p_gains and abs(i0) < Kamp * min(p_gains) * k_fb * step / 2.0:
         return None
     return Null(i0, se, tuple(name for name, _ in read))
 
 
-def held(runs: Sequence[GapRun], null: Null | None, Kamp: float, k_fb: float) -> list[GapRun]:
-    """The runs with the null in them: u shifted by i0/Kamp [V] where replayed, and the command of a P or PD run by
-    δ = i0/(Kamp·Kp·k_fb) [in] (a PI loop's integrator holds it: no shift)."""
-    if null is None:
+def held(runs: Sequence[GapRun], null: Null | None, Kamp: float, k_fb: float | None) -> list[GapRun]:
+    """The runs with the null in the model's inputs: the valve sees Kamp·u − i0, so a replayed u is shifted by
+    −i0/Kamp [V], and a P or PD run's command by −i0/(Kamp·Kp·k_fb) [in] (a PI loop's integrator holds it: no
+    shift)."""
+    if null is None or k_fb is None:
         return list(runs)
-    u0 = null.i0 / Kamp
+    u0 = -null.i0 / Kamp
     return [replace(r, null_u=u0, command_shift=u0 / (r.controller.Kp * k_fb)
                     if r.controller.Ki == 0.0 and r.controller.Kp * k_fb != 0.0 else 0.0) for r in runs]

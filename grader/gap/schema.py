@@ -209,9 +209,12 @@ class Diagnosis(_Frozen):
                                                                        "(empty where the verdict is 'none', no other "
                                                                        "effect competes with it, the friction test broke "
                                                                        "a tie, or a run has no finite u column)")
-    valve_null: Value | None = Field(None, description="the valve's null current in the runs [mA] with its 95 % "
-                                                       "interval, read where the runs rest (every model has it in every "
-                                                       "run); null where the rests show none")
+    valve_null: Value | None = Field(None, description="the current [mA] at which the valve passes no flow in the runs "
+                                                       "(its null, in the flow test's sense) with its 95 % interval, "
+                                                       "read where the runs rest; every model has it in every run. "
+                                                       "null where the rests read none: within 3 standard errors of 0, "
+                                                       "disagreeing, still settling, or finer than half the readings' "
+                                                       "lattice step")
     notes: list[str]
 
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
