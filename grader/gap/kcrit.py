@@ -28,8 +28,7 @@ GRID, SPAN = 24, 4.0
 
 
 def _first_lasting(point: Point, run: GapRun, gains: Array) -> int | None:
-    shift = run.command_shift * run.controller.Kp  # the command shift that holds the valve's null ∝ 1/Kp
-    runs = [replace(run, controller=replace(run.controller, Kp=float(k)), command_shift=shift / float(k)) for k in gains]
+    runs = [replace(run, controller=replace(run.controller, Kp=float(k))) for k in gains]
     xs = np.stack(Backend(runs).all_runs([point])[0])
     lasting = np.flatnonzero(sustained(xs, run.t, run.start, float(np.ptp(run.r))))
     return int(lasting[0]) if lasting.size else None

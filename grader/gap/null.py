@@ -145,8 +145,7 @@ def held(runs: Sequence[GapRun], null: Null | None, Kamp: float, k_fb: float | N
     """The runs with the null in the model's inputs: the valve sees Kamp·u − i0, so a replayed u is shifted by
     −i0/Kamp [V], and a P or PD run's command by −i0/(Kamp·Kp·k_fb) [in] (a PI loop's integrator holds it: no
     shift)."""
-    if null is None or k_fb is None:
+    if null is None or not k_fb:
         return list(runs)
     u0 = -null.i0 / Kamp
-    return [replace(r, null_u=u0, command_shift=u0 / (r.controller.Kp * k_fb)
-                    if r.controller.Ki == 0.0 and r.controller.Kp * k_fb != 0.0 else 0.0) for r in runs]
+    return [replace(r, null_u=u0, null_offset=u0 / k_fb) for r in runs]

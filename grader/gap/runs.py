@@ -86,14 +86,21 @@ class GapRun:
     start: float
     scale: float
     noise: Array
-    #: the valve's null current as a controller output [V], and the command shift [in] that holds it in a P or PD
-    #: loop (:mod:`grader.gap.null`): the model's inputs, not the rig's
+    #: the valve's null current as a shift of the controller output [V], and that shift through the feedback gain,
+    #: null_u/k_fb [in] (:mod:`grader.gap.null`): the model's inputs, not the rig's
     null_u: float = 0.0
-    command_shift: float = 0.0
+    null_offset: float = 0.0
 
     @property
     def n(self) -> int:
         return self.t.size
+
+    @property
+    def command_shift(self) -> float:
+        """The command shift [in] that holds the valve's null in a P or PD loop at this run's gain (a PI loop's
+        integrator holds it: 0)."""
+        c = self.controller
+        return self.null_offset / c.Kp if c.Ki == 0.0 and c.Kp != 0.0 else 0.0
 
 
 def command_start(t: Array, r: Array) -> float:

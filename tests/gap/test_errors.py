@@ -114,3 +114,17 @@ def test_the_collector_is_paused_for_a_diagnosis_and_restored_after(enabled: boo
         assert gc.isenabled() is enabled
     finally:
         gc.enable()
+
+
+@pytest.mark.parametrize(("args", "says"), [
+    (["--valve-null", "5"], "--valve-null must be between 0 and 1 mA; got 5"),
+    (["--valve-null", "-0.1"], "--valve-null must be between 0 and 1 mA; got -0.1"),
+    (["--valve-null", "nan"], "--valve-null must be between 0 and 1 mA; got nan"),
+    (["--n", "0"], "--n and --jobs must be at least 1"),
+])
+def test_bench_gap_refuses_bad_options_in_one_line(args: list[str], says: str, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench-gap", *args, "--workdir", str(tmp_path / "w")]) == 2
+    err = capsys.readouterr().err
+    assert says in err and "Traceback" not in err
+    assert not (tmp_path / "w").exists() or not any((tmp_path / "w").iterdir())  # nothing generated

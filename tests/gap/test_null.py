@@ -63,6 +63,18 @@ def test_the_null_is_read_where_the_runs_rest_and_the_model_then_follows_them(st
             assert slope == pytest.approx(-i0 * p.Kq / p.A, rel=0.05), run.name
 
 
+def test_the_held_null_shifts_a_p_run_s_command_by_what_holds_it_at_any_gain() -> None:
+    """The valve sees Kamp·u − i0: a P loop at gain Kp reads a command i0/(Kamp·Kp·k_fb) lower; a PI loop's integrator
+    holds it (no shift); a gain tried apart (the augmented critical gain's search) gets its own shift."""
+    null = null_mod.Null(0.05, 0.001, ("s",))
+    p_run, pi_run = _resting("p", 0.01), replace(_resting("i", 0.01), controller=Controller(10.0, Ki=5.0))
+    held_p, held_pi = null_mod.held([p_run, pi_run], null, 5.0, 0.4)
+    assert held_p.null_u == held_pi.null_u == pytest.approx(-0.01)
+    assert held_p.command_shift == pytest.approx(-0.05 / (5.0 * 10.0 * 0.4)) and held_pi.command_shift == 0.0
+    assert replace(held_p, controller=Controller(40.0)).command_shift == pytest.approx(held_p.command_shift / 4.0)
+    assert null_mod.held([p_run], null, 5.0, None) == [p_run] == null_mod.held([p_run], None, 5.0, 0.4)
+
+
 def test_runs_that_rest_at_their_commands_hold_no_null(station: Station, tmp_path: Path) -> None:
     runs, p = _runs(station, tmp_path, 0.0)
     assert null_mod.estimate(runs, p.Kamp, p.k_fb) is None
