@@ -40,10 +40,21 @@ MAX_CALL_SAMPLES = 2_000_000
 
 @dataclass(frozen=True)
 class Point:
-    """One model: linear parameters and unmodelled effects."""
+    """One model: linear parameters, unmodelled effects, and a fitted valve null as the shift [V] of the controller
+    output the valve sees (beyond the null held in the runs, :attr:`GapRun.null_u`)."""
 
     params: RigParams
     effects: EffectSet = field(default_factory=EffectSet)
+    null_u: float = 0.0
+
+
+def _shifted(point: Point, run: tuple[Controller, Array, Array], replay: bool) -> Array:
+    """The input ``point``'s null moves: a replayed run's controller output [V], shifted by null_u, else the
+    command [in], a P or PD loop's shifted by null_u/(k_fb·Kp) (a PI loop's integrator holds the null: unshifted)."""
+    if replay:
+        return run[2] + point.null_u if point.null_u else run[2]
+    c, r = run[0], run[1]
+    return r + point.null_u / (point.params.k_fb * c.Kp) if point.null_u and c.Ki == 0.0 and c.Kp != 0.0 else r
 
 
 @contextmanager
@@ -79,8 +90,10 @@ def _positions(points: Sequence[Point], which: Sequence[int], runs: Sequence[tup
     out: list[Array] = []
     for part in stretches([runs[i][1].size for i in which], MAX_CALL_SAMPLES, padded=True):
         pts, idx = points[part], which[part]
+        moved = [_shifted(pt, runs[i], replay) for pt, i in zip(pts, idx)]
+        commands = [runs[i][1] for i in idx] if replay else moved
         out += position_batch([pt.params for pt in pts], [runs[i][0] for i in idx], [pt.effects for pt in pts],
-                              [runs[i][1] for i in idx], [runs[i][2] for i in idx],
+                              commands, moved if replay else [runs[i][2] for i in idx],
                               max_substeps=FIT_MAX_SUBSTEPS, replay=replay).run()
     return out
 

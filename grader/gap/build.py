@@ -145,7 +145,7 @@ def candidate(state: FitState, cv: CrossValidation, before: CrossValidation, sco
     se = _theta_se(state, cv, [lengths[i] for i in state.runs])
     k = t_quantile(len(runs))
     params = {}
-    for j, fp in enumerate(c.params, start=N_LINEAR):
+    for j, fp in enumerate(c.params, start=c.lead):
         v = th[j] * fp.scale
         half = k * max(se[j] * fp.scale, MODEL_FORM_OF.get(fp.name, MODEL_FORM) * abs(v))
         params[c.label(fp)] = value(v, fp.unit, (max(fp.lo, v - half), min(fp.hi, v + half)))
@@ -155,13 +155,17 @@ def candidate(state: FitState, cv: CrossValidation, before: CrossValidation, sco
         v0 = float(getattr(base.params, name))
         w = min(k * se[j], MAX_LOG_WIDTH)  # an unidentified coordinate: a finite, very wide interval
         lin[name] = value(v0 * np.exp(th[j]), unit, (v0 * np.exp(th[j] - w), v0 * np.exp(th[j] + w)))
+    null = None
+    if c.null_scale > 0.0:
+        i0, half = c.null_current(th), k * se[N_LINEAR] * c.null_scale
+        null = value(i0, "mA", (i0 - half, i0 + half))
     after, bef = cv.overall, before.overall
     by_run = [RunShrink(run=run.name, heldout_nrmse_before=r6(b), heldout_nrmse_after=r6(a), shrink=r6(_shrink(b, a)))
               for run, b, a in zip(runs, before.heldout, cv.heldout)]
     fit = float(np.sqrt(state.cost / len(runs)))
     return Candidate(effect=c.effect, params=params, linear_params=lin, n_params=c.n_theta, fit_nrmse=r6(fit),
                      heldout_nrmse_before=r6(bef), heldout_nrmse_after=r6(after), shrink=r6(_shrink(bef, after)),
-                     score=r6(score), by_run=by_run)
+                     score=r6(score), by_run=by_run, valve_null=null)
 
 
 def t_quantile(n_runs: int) -> float:

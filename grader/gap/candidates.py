@@ -1,6 +1,8 @@
 """Candidate explanations of the gap: each canonical effect, plus ``none``.
 
-A candidate's parameter vector is ``θ = [ln(β/Vt ÷ β/Vt₀), ln(Kce ÷ Kce₀), ln(Kq ÷ Kq₀), m₁ …]``:
+A candidate's parameter vector is ``θ = [ln(β/Vt ÷ β/Vt₀), ln(Kce ÷ Kce₀), ln(Kq ÷ Kq₀), m₁ …]``
+(where the runs' rests hold the valve's null against friction, :func:`grader.gap.null.free`, the null current
+leads the magnitudes as one more coordinate, ``i0 ÷ null_scale``, fitted with every candidate):
 the linear model's β/Vt and Kce are always re-fitted (an unmodelled effect biases them), and
 so is the loop gain through Kq (the flow test that gives Kq sees the valve's own effects, and
 near the critical gain a loop gain off by 0.1 % changes the instability run's growth visibly).
@@ -14,7 +16,7 @@ spool where the verdict is a delay (:mod:`grader.gap.spool`).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -52,6 +54,8 @@ N_LINEAR = len(LINEAR)
 LINEAR_CEILING = {"beta_over_Vt": 1.6e6}
 #: How far (log ratio) a linear parameter may move from the baseline's: a factor 20.
 LINEAR_SPAN = 3.0
+#: How far a fitted null may move from the one held in the runs, in units of :attr:`Candidate.null_scale`.
+NULL_SPAN = 2.0
 
 
 @dataclass(frozen=True)
@@ -111,10 +115,23 @@ class Candidate:
     params: tuple[FitParam, ...] = ()
     fixed: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     names: tuple[str, ...] = ()
+    #: [mA] the unit of the valve's null current, fitted as θ's coordinate :data:`N_LINEAR` (0: not fitted; the
+    #: null, if any, is the one held in the runs)
+    null_scale: float = 0.0
+
+    @property
+    def lead(self) -> int:
+        """Coordinates of θ before the effects' magnitudes: the linear ones, and the null's where it is fitted."""
+        return N_LINEAR + (self.null_scale > 0.0)
 
     @property
     def n_theta(self) -> int:
-        return N_LINEAR + len(self.params)
+        return self.lead + len(self.params)
+
+    def null_current(self, theta: Array) -> float:
+        """The fitted null current [mA] at θ: where the valve passes no flow, beyond the null held in the runs (0
+        where it is not fitted)."""
+        return float(theta[N_LINEAR]) * self.null_scale if self.null_scale > 0.0 else 0.0
 
     def held(self) -> dict[str, tuple[float, str]]:
         """The held parameters (value, unit) of an effect fitted in a form other than its default (a second-order
@@ -134,7 +151,7 @@ class Candidate:
     def steps(self) -> Array:
         """Forward-difference step per coordinate of θ."""
         log_step, mag_step = SWITCHING_STEPS if SWITCHING & set(self.names) else SMOOTH_STEPS
-        return np.array([log_step] * N_LINEAR + [mag_step] * len(self.params))
+        return np.array([log_step] * N_LINEAR + [mag_step] * (self.n_theta - N_LINEAR))
 
     def bounds(self, base: RigParams | None = None) -> tuple[Array, Array]:
         """(lower, upper) of θ; the log ratios are kept within :data:`LINEAR_SPAN`, and around ``base`` also below
@@ -142,14 +159,15 @@ class Candidate:
         top = [LINEAR_SPAN if base is None or name not in LINEAR_CEILING else
                float(np.clip(np.log(LINEAR_CEILING[name] / getattr(base, name)), 0.0, LINEAR_SPAN))
                for name, _ in LINEAR]
-        lo = [-LINEAR_SPAN] * N_LINEAR + [p.lo / p.scale for p in self.params]
-        hi = top + [p.hi / p.scale for p in self.params]
+        null = [NULL_SPAN] * (self.lead - N_LINEAR)
+        lo = [-LINEAR_SPAN] * N_LINEAR + [-x for x in null] + [p.lo / p.scale for p in self.params]
+        hi = top + null + [p.hi / p.scale for p in self.params]
         return np.array(lo), np.array(hi)
 
     def values(self, theta: Array) -> dict[str, dict[str, float]]:
         """{effect: {parameter: value [internal units]}} at θ, held parameters included."""
         out: dict[str, dict[str, float]] = {n: dict(self.fixed.get(n, {})) for n in self.names}
-        for p, m in zip(self.params, theta[N_LINEAR:]):
+        for p, m in zip(self.params, theta[self.lead:]):
             out[p.effect][p.name] = float(np.clip(m * p.scale, p.lo, p.hi))
         return out
 
@@ -159,7 +177,7 @@ class Candidate:
         as the orifice law: 1)."""
         if not self.names:
             return 0.0
-        own = [(j, p) for j, p in enumerate(self.params, start=N_LINEAR) if p.effect == self.names[-1]]
+        own = [(j, p) for j, p in enumerate(self.params, start=self.lead) if p.effect == self.names[-1]]
         if not own:
             return 1.0
         j, p = own[0]
@@ -171,20 +189,27 @@ class Candidate:
         """θ of this candidate that acts as the one it extends does at ``reference`` (that one's θ, a prefix):
         the magnitudes added on top at their neutral values (:attr:`FitParam.neutral`). Exactly so, except for a
         spool lag (nearly: its least fitted time constant) and the orifice law (no parameter: it stays on)."""
-        assert N_LINEAR <= reference.size <= self.n_theta, "the reference must be a prefix of this θ"
-        extra = self.params[reference.size - N_LINEAR:]
+        assert self.lead <= reference.size <= self.n_theta, "the reference must be a prefix of this θ"
+        extra = self.params[reference.size - self.lead:]
         return np.concatenate([reference, [p.neutral for p in extra]])
 
+    def with_null(self, scale: float, theta: Array) -> tuple[Candidate, Array]:
+        """This candidate with the valve's null fitted in units of ``scale`` [mA], and ``theta`` as its θ (the
+        null at 0: the same model)."""
+        assert self.null_scale == 0.0, "the null is fitted already"
+        return replace(self, null_scale=scale), np.insert(theta, N_LINEAR, 0.0)
+
     def point(self, base: RigParams, theta: Array) -> Point:
-        """The model at θ around the baseline ``base``."""
+        """The model at θ around the baseline ``base`` (a fitted null as the controller output's shift,
+        −i0/Kamp [V])."""
         p = base.with_(**{name: float(getattr(base, name) * np.exp(theta[j])) for j, (name, _) in enumerate(LINEAR)})
-        return Point(p, EffectSet(self.values(theta)))
+        return Point(p, EffectSet(self.values(theta)), -self.null_current(theta) / base.Kamp)
 
 
 def combine(first: Candidate, second: Candidate) -> Candidate:
-    """``second`` added on top of ``first`` (θ: first's, then second's magnitudes)."""
+    """``second`` added on top of ``first`` (θ: first's, then second's magnitudes; the null as first's)."""
     return Candidate(f"{first.effect}+{second.effect}", first.params + second.params,
-                     {**first.fixed, **second.fixed}, first.names + second.names)
+                     {**first.fixed, **second.fixed}, first.names + second.names, first.null_scale)
 
 
 def make_candidates(base: RigParams, names: Sequence[str] | None = None, *, demand: float | None = None) -> list[Candidate]:

@@ -32,7 +32,7 @@ from grader.gap.pairs import NONE_GAP, Second, beyond_none, fit_nrmse, pick_seco
 from grader.gap.runs import (GapRun, check_gains, current_demand, cut_note, gain_notes, prepare_runs,
                              start_offset_note)
 from grader.gap.schema import Candidate as SchemaCandidate
-from grader.gap.schema import Diagnosis, ReplayInfo, Verdict
+from grader.gap.schema import Diagnosis, ReplayInfo, Value, Verdict
 from grader.gap.search import SearchResult, search
 from grader.gap.segments import Segment, segments_of
 from grader.gap.separating import separating_test
@@ -168,13 +168,15 @@ def _needs_second(state: FitState, lengths: Sequence[int], floor_nrmse: Array) -
 
 def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, candidates: Sequence[Candidate],
                   noise_nrmse: Array, sigma: float, fr: evidence.Friction | None, *, second: bool | None,
-                  parallel: bool) -> tuple[list[SchemaCandidate], Point, Verdict, list[ReplayInfo], str | None]:
+                  parallel: bool, null_scale: float | None) -> tuple[list[SchemaCandidate], Point, Verdict,
+                                                                   list[ReplayInfo], str | None]:
     """Search, rank (the friction test, or else the replayed runs, breaking a tie), optionally add a second effect:
     (candidates best first, the augmented model, verdict, the replay, a note on a spool too fast to be the
-    delay verdict's lookalike); ``sigma`` [in] is the reading noise."""
+    delay verdict's lookalike); ``sigma`` [in] is the reading noise; with ``null_scale`` [mA], the valve's null is
+    fitted with every candidate (:func:`grader.gap.null.free`)."""
     runs = [o.run for o in objs]
     with worker(parallel) as executor:
-        found = search(objs, base.params, candidates, executor=executor)
+        found = search(objs, base.params, candidates, executor=executor, null_scale=null_scale)
         names = [s.candidate.effect for s in found.states]
         scored = scored_of(found)
         rk = rank(scored, noise_nrmse)
@@ -292,6 +294,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     null_kfb = k_fb if k_fb is not None else implied  # the null is in the runs before the baseline is fitted to them
     null = null_mod.estimate(runs, ds.given["Kamp"], null_kfb, noise.adc_step or 0.0)
     runs = null_mod.held(runs, null, ds.given["Kamp"], null_kfb)
+    free_null = None if null else null_mod.free(runs, ds.given["Kamp"], null_kfb, noise.adc_step or 0.0)
     base = baseline_mod.choose(ds, runs, key=key, implied_kfb=implied)
     quant = quant_mod.assess(runs, noise, base.params.Kpot)
     backend = Backend(runs)
@@ -305,8 +308,9 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     objs = [objective(r, noise.sigma) for r in runs]
     own = spread(objs, Point(base.params), noise.sigma)
     objs = [replace(o, weight=float(np.sqrt(f**2 / (f**2 + s)))) for o, f, s in zip(objs, noise_nrmse, own)]
-    cands, aug, verdict, replayed, fast = _which_effect(objs, base, make_candidates(base.params, effects, demand=demand),
-                                                    noise_nrmse, noise.sigma, fr, second=second, parallel=parallel)
+    cands, aug, verdict, replayed, fast = _which_effect(
+        objs, base, make_candidates(base.params, effects, demand=demand), noise_nrmse,
+        noise.sigma, fr, second=second, parallel=parallel, null_scale=free_null)
     lg = None
     if fr is None and not base.kpot_from_flow_test:  # the flow test against the runs' loop gain (not against itself)
         lg = evidence.loop_gain(ds, next(c for c in cands if c.effect == verdict.effect), base.params)
@@ -317,6 +321,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     unstable = next((r for r in runs if r.kind == "instability"), None)
     aug_kcrit = None if unstable is None else kcrit.critical_gain(aug, unstable)
     gain_unit = "dimensionless" if ds.manifest.feedback == "volts" else "V/in"
+    fitted = None if null else _fitted_null(cands, verdict)
     diag = Diagnosis(
         dataset=ds.root.name, station=ds.manifest.station, inputs_sha256=ds.inputs_sha256,
         generated_by={"package": "grader", "version": __version__}, baseline=build.baseline_model(base),
@@ -324,11 +329,24 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
         readoffs=build.readoffs(runs, y_lin, y_aug, build.critical_gain(base), gain_unit, aug_kcrit),
         candidates=cands, verdict=verdict, quantization=build.quantization_info(quant),
         static_evidence={} if fr is None else fr.values(), loop_gain=lg, replay=replayed,
-        valve_null=None if null is None else build.value(null.i0, "mA", null.interval()),
+        valve_null=build.value(null.i0, "mA", null.interval()) if null else fitted,
         notes=[*set_aside, *base.notes, *_notes(ds, runs, quant, noise, implied, demand), *([fast] if fast else []),
-               *([null.text()] if null else [])],
+               *([null.text()] if null else []), *([] if fitted is None else [_fitted_text(fitted, verdict)])],
     )
     return Analysis(diag, runs, segs, y_lin, y_aug)
+
+
+def _fitted_null(cands: Sequence[SchemaCandidate], verdict: Verdict) -> Value | None:
+    """The valve's null fitted with the verdict (the pair's entry where a second effect is named), if fitted."""
+    effect = verdict.effect if verdict.second_effect is None else f"{verdict.effect}+{verdict.second_effect}"
+    return next((c.valve_null for c in cands if c.effect == effect), None)
+
+
+def _fitted_text(fitted: Value, verdict: Verdict) -> str:
+    """The note on the null fitted with the verdict."""
+    named = verdict.effect if verdict.second_effect is None else f"{verdict.effect} and {verdict.second_effect}"
+    assert fitted.interval is not None, "a fitted null has its interval"
+    return null_mod.fitted_text(fitted.value, fitted.interval, named)
 
 
 def diagnose_dataset(dataset_dir: str | Path, *, key: str | Path | None = None, out: str | Path | None = None,

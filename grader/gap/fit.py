@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from grader.gap.backend import Point, stretches
-from grader.gap.candidates import N_LINEAR, Candidate
+from grader.gap.candidates import Candidate
 from grader.gap.lm import damped_steps, sumsq
 from grader.gap.objective import RunObjective
 from grader.model.params import RigParams
@@ -102,9 +102,9 @@ class BatchFitter:
         return out
 
     def line(self, grid: Sequence[tuple[Candidate, Array]], *, offsets: Sequence[float] = KCE_LINE,
-             n_free: int | None = N_LINEAR) -> list[FitState]:
+             whole: bool = False) -> list[FitState]:
         """Each (candidate, θ) with ln Kce moved by the best of ``offsets`` (one batched evaluation on this fitter's
-        runs), as a state whose first ``n_free`` coordinates will move (None: all)."""
+        runs), as a state whose linear coordinates (and fitted null) will move, or with ``whole`` all of θ."""
         every = tuple(range(len(self.runs)))
         jobs = [(c, th + np.array([0.0, dk] + [0.0] * (th.size - 2)), every) for c, th in grid for dk in offsets]
         res = self.residuals(jobs)
@@ -112,7 +112,7 @@ class BatchFitter:
         for k in range(len(grid)):
             j = min(range(len(offsets)), key=lambda i: sumsq(res[k * len(offsets) + i]))
             c, th, _ = jobs[k * len(offsets) + j]
-            out.append(FitState(c, every, th, res[k * len(offsets) + j], n_free=n_free))
+            out.append(FitState(c, every, th, res[k * len(offsets) + j], n_free=None if whole else c.lead))
         return out
 
     def profile(self, starts: Sequence[tuple[Candidate, Array]], owner: Sequence[int], *, rounds: int) -> list[FitState]:

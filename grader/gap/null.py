@@ -23,6 +23,11 @@ average to up to half a lattice step off where the rig rests, so a null that hol
 off its command is none. The model then has the null in every run (:attr:`GapRun.null_u`,
 :attr:`GapRun.command_shift`: exact while neither the DAC nor a current limit clips, where the model clips the
 shifted signal rather than the amplifier's own), and a note says so.
+
+Where the rests disagree, so that none is read, but a rest before a command lies :data:`FREE_Z` standard errors or
+more off 0 (a rig resting at its command has nothing but its noise to move it until the command changes), friction,
+a deadband or hysteresis holds the rig somewhere in a band around a null: :func:`free` then has the null fitted
+with every candidate (:meth:`grader.gap.candidates.Candidate.with_null`).
 """
 
 from __future__ import annotations
@@ -49,6 +54,11 @@ MAX_RHO = 0.9
 END_SHARE = 0.2
 #: Standard errors by which a rest's two halves may differ before it is taken for a rig still settling.
 SETTLING_Z = 3.0
+#: Standard errors off 0 from which some rest before a command shows a null that friction hides (:func:`free`):
+#: 3 standard errors family-wise over up to ten such rests (Bonferroni), since any of a dataset's may show it. Rigs
+#: with friction and no null read up to 3.5 there (the AR(1) standard error understates a rig held by friction while
+#: its noise nudges it), rigs with a null from 4.5 up.
+FREE_Z = 4.0
 
 
 @dataclass(frozen=True)
@@ -70,6 +80,17 @@ class Null:
                 f"mA, read where the runs rest: {', '.join(self.rests)}): a P loop rests off its command by "
                 "i0/(Kamp·Kp·k_fb) and a PI loop holds it with its integrator; every model here has it in every run, "
                 "and trimming the valve's null would remove it")
+
+
+def fitted_text(i0: float, interval: tuple[float, float], verdict: str) -> str:
+    """The note on a null fitted with every candidate (:func:`free`), as the verdict's fit puts it: no flow at ``i0``
+    [mA] within ``interval``."""
+    lo, hi = interval
+    where = (f"the fit with {verdict} puts its null at {i0:.3g} mA (95 % interval {lo:.3g} to {hi:.3g} mA)"
+             + (", not at 0" if lo > 0 or hi < 0 else ", which 0 lies within"))
+    return ("before the commands change, the runs rest off them, as a valve passing flow at zero current would hold "
+            "them, but the rests disagree on how far (friction, a deadband or hysteresis holds a rig anywhere in a band "
+            f"around its null): so every model here fits the valve's null with its effect, and {where}")
 
 
 def _mean_se(x: np.ndarray, floor: float = 0.0) -> tuple[float, float]:
@@ -105,19 +126,35 @@ def _reading(run: GapRun, at: np.ndarray, Kamp: float, k_fb: float, step: float)
     return (gain * m, abs(gain) * se) if se > 0.0 else None  # constant readings of unknown resolution: no reading
 
 
-def _rests(run: GapRun) -> list[tuple[str, np.ndarray]]:
-    """Where ``run`` rests (module docstring): before its command, and a P or PD step run also over its last
-    :data:`END_SHARE` where its command holds still."""
+def _rests(run: GapRun) -> list[tuple[str, np.ndarray, bool]]:
+    """Where ``run`` rests (module docstring), and whether before its command: before its command, and a P or PD
+    step run also over its last :data:`END_SHARE` where its command holds still."""
     if run.kind == "instability":
         return []
-    out = [(f"{run.name} before its command", run.t < run.start)]
+    out = [(f"{run.name} before its command", run.t < run.start, True)]
     if run.kind == "step" and run.controller.Ki == 0.0:
         after = np.flatnonzero(run.t >= run.start)
         end = np.zeros(run.t.size, dtype=bool)
         end[after[int((1.0 - END_SHARE) * after.size):]] = True
         if end.any() and float(np.ptp(run.r[end])) == 0.0:
-            out.append((f"{run.name} at its end", end))
+            out.append((f"{run.name} at its end", end, False))
     return out
+
+
+def _readings(runs: Sequence[GapRun], Kamp: float, k_fb: float, step: float) -> list[tuple[str, bool, float, float]]:
+    """(rest, whether before a command, i0, its standard error [mA]) of each rest that gives a reading."""
+    return [(name, before, *v) for r in runs for name, at, before in _rests(r)
+            for v in [_reading(r, at, Kamp, k_fb, step)] if v is not None]
+
+
+def _pooled(read: Sequence[tuple[str, bool, float, float]]) -> tuple[float, float, bool]:
+    """The readings' inverse-variance mean i0 and its standard error [mA], and whether they agree on it (χ² of their
+    spread below its :data:`AGREE` quantile; a single reading agrees with itself)."""
+    i0s, ses = np.array([v[2] for v in read]), np.array([v[3] for v in read])
+    w = 1.0 / ses**2
+    i0, se = float(np.sum(w * i0s) / np.sum(w)), float(1.0 / np.sqrt(np.sum(w)))
+    spread = float(np.sum(w * (i0s - i0) ** 2))
+    return i0, se, len(read) < 2 or spread <= stats.chi2.ppf(AGREE, len(read) - 1)
 
 
 def estimate(runs: Sequence[GapRun], Kamp: float, k_fb: float | None, step: float = 0.0) -> Null | None:
@@ -125,20 +162,33 @@ def estimate(runs: Sequence[GapRun], Kamp: float, k_fb: float | None, step: floa
     (None: not known, and no null is read), ``step`` [in]: the readings' lattice step, if quantised."""
     if k_fb is None:
         return None
-    read = [(name, v) for r in runs for name, at in _rests(r) for v in [_reading(r, at, Kamp, k_fb, step)]
-            if v is not None]
+    read = _readings(runs, Kamp, k_fb, step)
     if not read:
         return None
-    i0s, ses = np.array([v[0] for _, v in read]), np.array([v[1] for _, v in read])
-    w = 1.0 / ses**2
-    i0, se = float(np.sum(w * i0s) / np.sum(w)), float(1.0 / np.sqrt(np.sum(w)))
-    spread = float(np.sum(w * (i0s - i0) ** 2))
-    if abs(i0) < NULL_Z * se or (len(read) > 1 and spread > stats.chi2.ppf(AGREE, len(read) - 1)):
+    i0, se, agree = _pooled(read)
+    if abs(i0) < NULL_Z * se or not agree:
         return None
     p_gains = [r.controller.Kp for r in runs if r.controller.Ki == 0.0 and r.controller.Kp > 0.0]
     if step > 0.0 and p_gains and abs(i0) < Kamp * min(p_gains) * k_fb * step / 2.0:
         return None
-    return Null(i0, se, tuple(name for name, _ in read))
+    return Null(i0, se, tuple(v[0] for v in read))
+
+
+def free(runs: Sequence[GapRun], Kamp: float, k_fb: float | None, step: float = 0.0) -> float | None:
+    """Where the runs hold a null that friction hides, the unit [mA] in which to fit it with every candidate
+    (:attr:`~grader.gap.candidates.Candidate.null_scale`: the largest current a rest reads), else None. Called where
+    :func:`estimate` reads none. A rig at rest at its command has nothing but its noise to move it before the
+    command changes, unless its valve passes flow there: a rest before a command that reads a current
+    :data:`FREE_Z` standard errors or more from 0 shows a null, and rests that disagree on it (beyond their
+    :data:`AGREE` quantile) show a rig held wherever its last motion stopped, within a band around the null
+    (Coulomb friction, a deadband, hysteresis). Their spread is no standard error of the null: the fit of each
+    candidate, which moves the rig through each run's history, reads it instead."""
+    if not k_fb:
+        return None
+    read = _readings(runs, Kamp, k_fb, step)
+    if not any(before and abs(i) >= FREE_Z * se for _, before, i, se in read) or _pooled(read)[2]:
+        return None
+    return max(abs(v[2]) for v in read)
 
 
 def held(runs: Sequence[GapRun], null: Null | None, Kamp: float, k_fb: float | None) -> list[GapRun]:

@@ -107,6 +107,10 @@ class Candidate(_Frozen):
     shrink: float = Field(description="fraction of the held-out gap removed: 1 − after/before")
     score: float = Field(description="penalised geometric-mean held-out NRMSE²; lower is better")
     by_run: list[RunShrink]
+    valve_null: Value | None = Field(None, description="the current [mA] at which the valve passes no flow, fitted with "
+                                                       "this candidate (95 % interval), where the rests show a null "
+                                                       "they disagree on (friction holding the rig around it); "
+                                                       "null where no null is fitted")
 
 
 class Verdict(_Frozen):
@@ -212,9 +216,11 @@ class Diagnosis(_Frozen):
     valve_null: Value | None = Field(None, description="the current [mA] at which the valve passes no flow in the runs "
                                                        "(its null, in the flow test's sense) with its 95 % interval, "
                                                        "read where the runs rest; every model has it in every run. "
-                                                       "null where the rests read none: within 3 standard errors of 0, "
-                                                       "disagreeing, still settling, or finer than half the readings' "
-                                                       "lattice step")
+                                                       "Where a rest before a command shows a null the rests disagree "
+                                                       "on (friction holding the rig around it), the null each "
+                                                       "candidate fits, the verdict's here. null where the rests read "
+                                                       "none: within 3 standard errors of 0, disagreeing, still "
+                                                       "settling, or finer than half the readings' lattice step")
     notes: list[str]
 
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)

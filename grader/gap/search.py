@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from grader.gap.backend import Backend
-from grader.gap.candidates import N_LINEAR, NONE, WEAK_STRENGTH, Candidate, combine
+from grader.gap.candidates import NONE, WEAK_STRENGTH, Candidate, combine
 from grader.gap.crossval import CrossValidation, cross_validate
 from grader.gap.fit import BatchFitter, FitState, grid_starts
 from grader.gap.objective import RunObjective
@@ -41,6 +41,8 @@ PROFILE_ROUNDS, FIRST_ROUNDS, FULL_ROUNDS = 3, 3, 2
 #: ln Kce moved by the best offset of CLIFF_LINE (Kce within ±20 % in steps of 1 %; module docstring).
 CLIFF = 10.0
 CLIFF_LINE = tuple(round(0.01 * i, 2) for i in range(-20, 21))
+#: Levenberg–Marquardt rounds of the fits that free the valve's null from their optima without it (:func:`search`).
+NULL_ROUNDS = 4
 
 
 @dataclass(frozen=True)
@@ -63,8 +65,9 @@ def _fitter(objectives: Sequence[RunObjective], base: RigParams, window: float |
 
 
 def _with_linear(states: Sequence[FitState], which: Sequence[int], lin: Array) -> list[FitState]:
-    """``states[k]`` for each k of ``which`` with its linear coordinates set to ``lin`` (its magnitudes kept)."""
-    return [replace(states[k], theta=np.concatenate([lin, states[k].theta[N_LINEAR:]])) for k in which]
+    """``states[k]`` for each k of ``which`` with its linear coordinates (and fitted null) set to ``lin`` (its
+    magnitudes kept)."""
+    return [replace(states[k], theta=np.concatenate([lin, states[k].theta[lin.size:]])) for k in which]
 
 
 #: Which of a search's fitted states (given the runs' lengths) are worth cross-validating; the rest are left out.
@@ -73,12 +76,14 @@ Keep = Callable[[Sequence[FitState], Sequence[int]], Sequence[bool]]
 
 def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequence[Candidate], *,
            executor: Executor | None = None, theta0: Sequence[Array] | None = None,
-           keep: Keep | None = None) -> SearchResult:
+           keep: Keep | None = None, null_scale: float | None = None) -> SearchResult:
     """Fit ``candidates`` around ``base`` on the runs of ``objectives`` and cross-validate them (see module
     docstring); ``theta0`` are the profile's starting points (default: the baseline, zero magnitudes); with them,
     the search is a second search (:func:`second_effect`): the last candidate is the first effect alone, which
     every other one extends. With ``keep``, only the fits it keeps are cross-validated and returned, in order (the
-    others in ``dropped``).
+    others in ``dropped``). With ``null_scale`` [mA] (a first search), every fit is then fitted once more with the
+    valve's null free (:meth:`Candidate.with_null`), over :data:`NULL_ROUNDS` rounds from its optimum without it:
+    none ends worse than it was, and the null moves where the runs ask for it.
 
     Every whole-run fit starts twice, keeping the better end: from where the short windows led it and from
     the baseline's linear coordinates (for a second effect, the first effect's optimum's), since a profile can
@@ -93,12 +98,13 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
     states = short.profile(*grid_starts(candidates, theta0), rounds=PROFILE_ROUNDS)
     states = middle.fit(middle.rebase(states), rounds=FIRST_ROUNDS, final_jacobian=False)
     n = len(states)
-    lin0 = np.zeros(N_LINEAR) if theta0 is None else np.asarray(theta0[-1], dtype=float)[:N_LINEAR]
+    lead = candidates[0].lead  # the linear coordinates, and the null's where it is fitted: alike in every candidate
+    lin0 = np.zeros(lead) if theta0 is None else np.asarray(theta0[-1], dtype=float)[:lead]
     ends = full.fit(full.rebase([*states, *_with_linear(states, range(n), lin0)]), rounds=FULL_ROUNDS)
     ends = [min(ends[k], ends[n + k], key=lambda s: s.cost) for k in range(n)]
     cliff = [k for k in range(n) if ends[k].cost > CLIFF * states[k].cost]
     if cliff:
-        lined = full.line([(states[k].candidate, states[k].theta) for k in cliff], offsets=CLIFF_LINE, n_free=None)
+        lined = full.line([(states[k].candidate, states[k].theta) for k in cliff], offsets=CLIFF_LINE, whole=True)
         for k, s in zip(cliff, full.fit(full.rebase(lined), rounds=FULL_ROUNDS)):
             ends[k] = min(ends[k], s, key=lambda x: x.cost)
     if theta0 is None:
@@ -106,7 +112,7 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
         if ref is not None:
             ends[ref] = _none_from_neutral(full, ends, ref)
         redo = [] if ref is None else [k for k, s in enumerate(ends) if s.cost > ends[ref].cost]
-        restarts = _with_linear(states, redo, ends[ref].theta[:N_LINEAR]) if redo else []
+        restarts = _with_linear(states, redo, ends[ref].theta[:lead]) if redo else []
     else:
         redo = [k for k, s in enumerate(ends[:-1]) if s.cost > ends[-1].cost]
         restarts = [replace(states[k], theta=states[k].candidate.nesting(ends[-1].theta), jac=None) for k in redo]
@@ -114,6 +120,10 @@ def search(objectives: Sequence[RunObjective], base: RigParams, candidates: Sequ
         again = full.fit(full.rebase(restarts), rounds=FULL_ROUNDS)
         for k, s in zip(redo, again):
             ends[k] = min(ends[k], s, key=lambda x: x.cost)
+    if null_scale:
+        assert theta0 is None, "the null is freed in a first search; a second one extends fits that have it"
+        freed = [(s, *s.candidate.with_null(null_scale, s.theta)) for s in ends]
+        ends = full.fit(full.rebase([FitState(c, s.runs, th, s.res) for s, c, th in freed]), rounds=NULL_ROUNDS)
     dropped: list[FitState] = []
     if keep is not None:
         kept = keep(ends, full.lengths)
@@ -134,7 +144,8 @@ def _none_from_neutral(full: BatchFitter, ends: list[FitState], ref: int) -> Fit
         return ends[ref]
     start = min(weak, key=lambda s: s.cost)
     none = ends[ref]
-    again = full.fit(full.rebase([replace(none, theta=np.asarray(start.theta[:N_LINEAR]), jac=None, done=False)]),
+    again = full.fit(full.rebase([replace(none, theta=np.asarray(start.theta[:none.candidate.lead]), jac=None,
+                                          done=False)]),
                      rounds=FULL_ROUNDS)[0]
     return min(none, again, key=lambda s: s.cost)
 

@@ -20,7 +20,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from grader.gap.candidates import N_LINEAR, Candidate
+from grader.gap.candidates import Candidate
 from grader.gap.fit import FitState
 from grader.gap.objective import RunObjective
 from grader.gap.search import SearchResult, refit
@@ -64,8 +64,9 @@ def fit_against_delay(objs: Sequence[RunObjective], base: RigParams, delay: FitS
     coordinates, and the tau [s] whose low-frequency phase lag is the delay's (delay [s] = 2·zeta·tau)."""
     c = second_order(spool.candidate)
     p_delay, p_tau = delay.candidate.params[0], c.params[0]
-    tau = float(delay.theta[N_LINEAR]) * p_delay.scale / (2.0 * SECOND_ORDER["zeta"])
+    lead = delay.candidate.lead
+    tau = float(delay.theta[lead]) * p_delay.scale / (2.0 * SECOND_ORDER["zeta"])
     lo, hi = c.bounds(base)
-    theta = np.clip(np.concatenate([delay.theta[:N_LINEAR], [tau / p_tau.scale]]), lo, hi)
+    theta = np.clip(np.concatenate([delay.theta[:lead], [tau / p_tau.scale]]), lo, hi)
     start = FitState(c, spool.runs, theta, spool.res)  # a fresh fit: the residual is recomputed there
     return refit(objs, base, start, executor=executor)
