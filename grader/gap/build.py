@@ -13,7 +13,7 @@ from scipy import stats
 
 from grader.gap import metrics
 from grader.gap.baseline import Baseline
-from grader.gap.candidates import LINEAR, N_LINEAR
+from grader.gap.candidates import LINEAR, N_LINEAR, NULL_SPAN
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.lm import sumsq
@@ -156,9 +156,10 @@ def candidate(state: FitState, cv: CrossValidation, before: CrossValidation, sco
         w = min(k * se[j], MAX_LOG_WIDTH)  # an unidentified coordinate: a finite, very wide interval
         lin[name] = value(v0 * np.exp(th[j]), unit, (v0 * np.exp(th[j] - w), v0 * np.exp(th[j] + w)))
     null = None
-    if c.null_scale > 0.0:
-        i0, half = c.null_current(th), k * se[N_LINEAR] * c.null_scale
-        null = value(i0, "mA", (i0 - half, i0 + half))
+    if c.null_scale > 0.0:  # a null no run feels (a zero column: pinv gives 0) spans its whole range
+        i0, top = c.null_current(th), NULL_SPAN * c.null_scale
+        half = k * se[N_LINEAR] * c.null_scale if se[N_LINEAR] > 0.0 else 2.0 * top
+        null = value(i0, "mA", (max(-top, i0 - half), min(top, i0 + half)))
     after, bef = cv.overall, before.overall
     by_run = [RunShrink(run=run.name, heldout_nrmse_before=r6(b), heldout_nrmse_after=r6(a), shrink=r6(_shrink(b, a)))
               for run, b, a in zip(runs, before.heldout, cv.heldout)]

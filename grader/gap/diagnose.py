@@ -37,7 +37,7 @@ from grader.gap.search import SearchResult, search
 from grader.gap.segments import Segment, segments_of
 from grader.gap.separating import separating_test
 from grader.gap.spread import spread
-from grader.gap.summary import by_text
+from grader.gap.summary import by_text, effect_name
 from grader.gap.verdict import Ranking, Scored, explaining, rank
 from grader.model.effects import EffectSet
 
@@ -168,12 +168,12 @@ def _needs_second(state: FitState, lengths: Sequence[int], floor_nrmse: Array) -
 
 def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, candidates: Sequence[Candidate],
                   noise_nrmse: Array, sigma: float, fr: evidence.Friction | None, *, second: bool | None,
-                  parallel: bool, null_scale: float | None) -> tuple[list[SchemaCandidate], Point, Verdict,
-                                                                   list[ReplayInfo], str | None]:
+                  parallel: bool, null_scale: float | None) -> tuple[list[SchemaCandidate], Point, SchemaCandidate,
+                                                                   Verdict, list[ReplayInfo], str | None]:
     """Search, rank (the friction test, or else the replayed runs, breaking a tie), optionally add a second effect:
-    (candidates best first, the augmented model, verdict, the replay, a note on a spool too fast to be the
-    delay verdict's lookalike); ``sigma`` [in] is the reading noise; with ``null_scale`` [mA], the valve's null is
-    fitted with every candidate (:func:`grader.gap.null.free`)."""
+    (candidates best first, the augmented model and its entry, verdict, the replay, a note on a spool too fast to be
+    the delay verdict's lookalike); ``sigma`` [in] is the reading noise; with ``null_scale`` [mA], the valve's null
+    is fitted with every candidate (:func:`grader.gap.null.free`)."""
     runs = [o.run for o in objs]
     with worker(parallel) as executor:
         found = search(objs, base.params, candidates, executor=executor, null_scale=null_scale)
@@ -238,14 +238,14 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
                 extra, why2 = None, ""
                 replays = [*(r for r in replays if r.of != "second_effect"), dropped]
     cands = [built[i] for i in rk.order]
-    aug = found.states[rk.verdict]
+    aug, entry = found.states[rk.verdict], built[rk.verdict]
     verdict = _verdict(rk, names)
     if why:
         verdict = verdict.model_copy(update={"explanation": f"{verdict.explanation}; {why}"})
     if extra is not None:
         pair, added = extra.candidate, extra.state.candidate.names[-1]
         cands.append(pair)
-        aug = extra.state
+        aug, entry = extra.state, pair
         first = (extra.share if extra.share is not None else
                  cands[0].shrink / pair.shrink if pair.shrink > 0 else 1.0)
         share = build.r6(min(max(first, 0.0), 1.0))
@@ -260,7 +260,7 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
             "second_effect": added, "shares": {verdict.effect: share, added: build.r6(1.0 - share)},
             "explanation": text, "second_indistinguishable_from": extra.alike, "second_separating_test": test})
     point = aug.candidate.point(base.params, aug.theta)
-    return cands, point, verdict, replays, fast if names[rk.verdict] == spool.DELAY else None
+    return cands, point, entry, verdict, replays, fast if names[rk.verdict] == spool.DELAY else None
 
 
 def _notes(ds: Dataset, runs: Sequence[GapRun], quant: quant_mod.Quantization | None, noise: noise_mod.Noise,
@@ -308,7 +308,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     objs = [objective(r, noise.sigma) for r in runs]
     own = spread(objs, Point(base.params), noise.sigma)
     objs = [replace(o, weight=float(np.sqrt(f**2 / (f**2 + s)))) for o, f, s in zip(objs, noise_nrmse, own)]
-    cands, aug, verdict, replayed, fast = _which_effect(
+    cands, aug, entry, verdict, replayed, fast = _which_effect(
         objs, base, make_candidates(base.params, effects, demand=demand), noise_nrmse,
         noise.sigma, fr, second=second, parallel=parallel, null_scale=free_null)
     lg = None
@@ -321,7 +321,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     unstable = next((r for r in runs if r.kind == "instability"), None)
     aug_kcrit = None if unstable is None else kcrit.critical_gain(aug, unstable)
     gain_unit = "dimensionless" if ds.manifest.feedback == "volts" else "V/in"
-    fitted = None if null else _fitted_null(cands, verdict)
+    fitted = None if null else entry.valve_null  # the augmented model's (evidence may name more than it fits)
     diag = Diagnosis(
         dataset=ds.root.name, station=ds.manifest.station, inputs_sha256=ds.inputs_sha256,
         generated_by={"package": "grader", "version": __version__}, baseline=build.baseline_model(base),
@@ -331,22 +331,15 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
         static_evidence={} if fr is None else fr.values(), loop_gain=lg, replay=replayed,
         valve_null=build.value(null.i0, "mA", null.interval()) if null else fitted,
         notes=[*set_aside, *base.notes, *_notes(ds, runs, quant, noise, implied, demand), *([fast] if fast else []),
-               *([null.text()] if null else []), *([] if fitted is None else [_fitted_text(fitted, verdict)])],
+               *([null.text()] if null else []), *([] if fitted is None else [_fitted_text(fitted, entry.effect)])],
     )
     return Analysis(diag, runs, segs, y_lin, y_aug)
 
 
-def _fitted_null(cands: Sequence[SchemaCandidate], verdict: Verdict) -> Value | None:
-    """The valve's null fitted with the verdict (the pair's entry where a second effect is named), if fitted."""
-    effect = verdict.effect if verdict.second_effect is None else f"{verdict.effect}+{verdict.second_effect}"
-    return next((c.valve_null for c in cands if c.effect == effect), None)
-
-
-def _fitted_text(fitted: Value, verdict: Verdict) -> str:
-    """The note on the null fitted with the verdict."""
-    named = verdict.effect if verdict.second_effect is None else f"{verdict.effect} and {verdict.second_effect}"
+def _fitted_text(fitted: Value, effect: str) -> str:
+    """The note on the null fitted with ``effect``, the augmented model's (``a+b`` for a pair)."""
     assert fitted.interval is not None, "a fitted null has its interval"
-    return null_mod.fitted_text(fitted.value, fitted.interval, named)
+    return null_mod.fitted_text(fitted.value, fitted.interval, effect_name(effect))
 
 
 def diagnose_dataset(dataset_dir: str | Path, *, key: str | Path | None = None, out: str | Path | None = None,

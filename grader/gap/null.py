@@ -54,8 +54,8 @@ MAX_RHO = 0.9
 END_SHARE = 0.2
 #: Standard errors by which a rest's two halves may differ before it is taken for a rig still settling.
 SETTLING_Z = 3.0
-#: Standard errors off 0 from which some rest before a command shows a null that friction hides (:func:`free`):
-#: 3 standard errors family-wise over up to ten such rests (Bonferroni), since any of a dataset's may show it. Rigs
+#: Standard errors off 0 from which some rest before a command shows a null that friction hides (:func:`free`): a
+#: two-sided p of 6e-5 per rest, under 0.1 % over ten rests (Bonferroni), since any of a dataset's may show it. Rigs
 #: with friction and no null read up to 3.5 there (the AR(1) standard error understates a rig held by friction while
 #: its noise nudges it), rigs with a null from 4.5 up.
 FREE_Z = 4.0
@@ -82,11 +82,11 @@ class Null:
                 "and trimming the valve's null would remove it")
 
 
-def fitted_text(i0: float, interval: tuple[float, float], verdict: str) -> str:
-    """The note on a null fitted with every candidate (:func:`free`), as the verdict's fit puts it: no flow at ``i0``
-    [mA] within ``interval``."""
+def fitted_text(i0: float, interval: tuple[float, float], effect: str) -> str:
+    """The note on a null fitted with every candidate (:func:`free`), as the fit with ``effect`` (the augmented
+    model's, named for the reader) puts it: no flow at ``i0`` [mA] within ``interval``."""
     lo, hi = interval
-    where = (f"the fit with {verdict} puts its null at {i0:.3g} mA (95 % interval {lo:.3g} to {hi:.3g} mA)"
+    where = (f"the fit with {effect} puts its null at {i0:.3g} mA (95 % interval {lo:.3g} to {hi:.3g} mA)"
              + (", not at 0" if lo > 0 or hi < 0 else ", which 0 lies within"))
     return ("before the commands change, the runs rest off them, as a valve passing flow at zero current would hold "
             "them, but the rests disagree on how far (friction, a deadband or hysteresis holds a rig anywhere in a band "
@@ -183,8 +183,8 @@ def free(runs: Sequence[GapRun], Kamp: float, k_fb: float | None, step: float = 
     :data:`AGREE` quantile) show a rig held wherever its last motion stopped, within a band around the null
     (Coulomb friction, a deadband, hysteresis). Their spread is no standard error of the null: the fit of each
     candidate, which moves the rig through each run's history, reads it instead."""
-    if not k_fb:
-        return None
+    if not k_fb or not any(r.controller.Ki == 0.0 and r.controller.Kp != 0.0 for r in runs):
+        return None  # no P or PD run: every loop's integrator holds the null, and no run shows it
     read = _readings(runs, Kamp, k_fb, step)
     if not any(before and abs(i) >= FREE_Z * se for _, before, i, se in read) or _pooled(read)[2]:
         return None

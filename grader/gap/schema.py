@@ -100,7 +100,8 @@ class Candidate(_Frozen):
     effect: str
     params: dict[str, Value]
     linear_params: dict[str, Value] = Field(description="β/Vt, Kce and Kq (the loop gain) re-fitted jointly with the effect")
-    n_params: int = Field(description="fitted parameters, β/Vt, Kce and Kq included")
+    n_params: int = Field(description="fitted parameters, β/Vt, Kce and Kq included (and the valve's null where it is "
+                                      "fitted: valve_null)")
     fit_nrmse: float = Field(description="NRMSE of the fit on all runs")
     heldout_nrmse_before: float = Field(description="held-out NRMSE of the re-fitted linear model ('none'), geometric mean over runs")
     heldout_nrmse_after: float = Field(description="held-out NRMSE with this effect, geometric mean over runs")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +50,34 @@ def test_rests_off_before_their_commands_that_disagree_free_the_null() -> None:
     # rests that agree are read as the null itself (estimate), and fit nothing more
     agree = [_resting(k, -0.01, -0.01, s) for s, k in enumerate("abc")]
     assert null_mod.estimate(agree, 5.0, 1.0) is not None and null_mod.free(agree, 5.0, 1.0) is None
+    # PI loops alone: each integrator holds the null, no run shows it, and the fit could not read it
+    assert null_mod.free([replace(r, controller=Controller(10.0, Ki=5.0)) for r in held], 5.0, 1.0) is None
+
+
+def test_a_fitted_null_s_interval_is_within_its_range_and_spans_it_where_no_run_feels_it(
+        station: Station, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The null's 95 % interval is t·se wide each way, clipped to the range fitted (±2 × its unit); with a standard
+    error of 0 (a null no run feels: a zero Jacobian column, which the pseudo-inverse gives no variance) the whole
+    range."""
+    from scipy import stats
+
+    from grader.gap import build
+    from grader.gap.baseline import Baseline
+    from grader.gap.crossval import CrossValidation
+    from grader.gap.fit import FitState
+
+    p = station.params()
+    cand, theta = make_candidates(p, ["sampling_delay"])[1].with_null(0.2, np.array([0.0, 0.0, 0.0, 0.3]))
+    theta[N_LINEAR] = 0.5  # no flow at 0.1 mA
+    state = FitState(cand, tuple(range(6)), theta, np.full(6, 0.01), jac=np.eye(6, theta.size))
+    cv = CrossValidation(np.full(6, 0.05), np.zeros((6, theta.size)))
+    runs = [_resting(f"r{k}", 0.0, 0.0, k) for k in range(6)]
+    for se, interval in [(0.1, (0.1 - stats.t.ppf(0.975, 5) * 0.02, 0.1 + stats.t.ppf(0.975, 5) * 0.02)),
+                         (5.0, (-0.4, 0.4)), (0.0, (-0.4, 0.4))]:
+        monkeypatch.setattr(build, "_theta_se", lambda *a, se=se: np.full(theta.size, se))
+        null = build.candidate(state, cv, cv, 0.0, runs, [1] * 6, Baseline(p, "runs", "test")).valve_null
+        assert null is not None and null.value == pytest.approx(0.1)
+        assert null.interval == pytest.approx(interval, rel=1e-5)
 
 
 def test_a_candidate_with_its_null_free_at_zero_is_the_same_model(station: Station) -> None:
@@ -80,7 +109,8 @@ def test_a_fitted_null_moves_the_model_as_the_null_held_in_the_runs_does(station
     inputs (grader.gap.null.held): P, PI and instability runs, closed loop and replayed."""
     quiet = station.model_copy(update={"noise": {**station.noise, "position": "0 in"}, "effects": {}})
     sim = ivp_run_simulator(EffectSet({"sensor_noise": {"sigma": SIGMA}}))
-    ds = load(make_dataset(quiet, tmp_path / "ds", seed=3, runs=short_plan(station), run_simulator=with_null(sim, 0.08)))
+    ds = load(make_dataset(quiet, tmp_path / "ds", seed=3, runs=short_plan(station),
+                           run_simulator=with_null(sim, 0.08)))
     runs, p = prepare_runs(ds, ds.given["sample_time"])[1], quiet.params()
     held = null_mod.held(runs, null_mod.Null(0.08, 0.001, ("r",)), p.Kamp, p.k_fb)
     effects = EffectSet({"valve_dynamics": {"tau": 0.002, "order": 1.0, "zeta": 0.7}})
@@ -112,3 +142,20 @@ def test_an_independent_coulomb_rig_a_tenth_of_a_milliamp_off_its_null_keeps_its
     assert not any("read where the runs rest" in n for n in d.notes)
     fc = verdict.params["Fc"]
     assert fc.interval is not None and fc.interval[0] < truth["effects"]["coulomb_friction"]["Fc_lbf"] < fc.interval[1]
+
+
+def test_the_null_reported_is_the_fitted_model_s_where_other_evidence_names_more(monkeypatch: pytest.MonkeyPatch
+                                                                                ) -> None:
+    """Evidence beyond the fits may add to the verdict (an ADC that matters, friction from the friction test): the
+    null reported is still the one of the model fitted, which has no entry of the added name."""
+    from grader.gap import evidence
+
+    def more(verdict, quant):  # type: ignore[no-untyped-def]
+        return verdict.model_copy(update={"second_effect": "sensor_quantization"})
+
+    monkeypatch.setattr(evidence, "quantized", more)
+    d = analyse(DATA / "independent_coulomb_null_large").diagnosis
+    assert d.verdict.second_effect == "sensor_quantization"
+    fitted = next(c for c in d.candidates if c.effect == "coulomb_friction").valve_null
+    assert fitted is not None and d.valve_null == fitted
+    assert any("the fit with Coulomb friction puts its null at" in n for n in d.notes)
