@@ -219,9 +219,11 @@ class Diagnosis(_Frozen):
                                                        "read where the runs rest; every model has it in every run. "
                                                        "Where a rest before a command shows a null the rests disagree "
                                                        "on (friction holding the rig around it), the null each "
-                                                       "candidate fits, the verdict's here. null where the rests read "
-                                                       "none: within 3 standard errors of 0, disagreeing, still "
-                                                       "settling, or finer than half the readings' lattice step")
+                                                       "candidate fits, the augmented model's here (the verdict's "
+                                                       "fit, or the pair's). null where the rests read none: within 3 "
+                                                       "standard errors of 0, disagreeing with no rest before a "
+                                                       "command 4 standard errors off 0, still settling, finer than "
+                                                       "half the readings' lattice step, or with no P or PD run")
     notes: list[str]
 
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
