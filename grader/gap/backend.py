@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from grader.gap.runs import GapRun
+from grader.gap.runs import GapRun, null_shift
 from grader.model.effects import EffectSet
 from grader.model.params import Controller, RigParams
 from grader.model.rig import position_batch
@@ -48,13 +48,15 @@ class Point:
     null_u: float = 0.0
 
 
-def _shifted(point: Point, run: tuple[Controller, Array, Array], replay: bool) -> Array:
-    """The input ``point``'s null moves: a replayed run's controller output [V], shifted by null_u, else the
-    command [in], a P or PD loop's shifted by null_u/(k_fb·Kp) (a PI loop's integrator holds the null: unshifted)."""
+def _with_null(point: Point, run: tuple[Controller, Array, Array], replay: bool) -> tuple[Array, Array]:
+    """The run's (command [in], noise [in] or, replayed, recorded controller output [V]) with ``point``'s null in
+    them: a replayed output shifted by null_u, else the command by :func:`~grader.gap.runs.null_shift`."""
+    c, r, other = run
+    if not point.null_u:
+        return r, other
     if replay:
-        return run[2] + point.null_u if point.null_u else run[2]
-    c, r = run[0], run[1]
-    return r + point.null_u / (point.params.k_fb * c.Kp) if point.null_u and c.Ki == 0.0 and c.Kp != 0.0 else r
+        return r, other + point.null_u
+    return r + null_shift(c, point.null_u / point.params.k_fb), other
 
 
 @contextmanager
@@ -90,11 +92,10 @@ def _positions(points: Sequence[Point], which: Sequence[int], runs: Sequence[tup
     out: list[Array] = []
     for part in stretches([runs[i][1].size for i in which], MAX_CALL_SAMPLES, padded=True):
         pts, idx = points[part], which[part]
-        moved = [_shifted(pt, runs[i], replay) for pt, i in zip(pts, idx)]
-        commands = [runs[i][1] for i in idx] if replay else moved
+        ins = [_with_null(pt, runs[i], replay) for pt, i in zip(pts, idx)]
         out += position_batch([pt.params for pt in pts], [runs[i][0] for i in idx], [pt.effects for pt in pts],
-                              commands, moved if replay else [runs[i][2] for i in idx],
-                              max_substeps=FIT_MAX_SUBSTEPS, replay=replay).run()
+                              [r for r, _ in ins], [x for _, x in ins], max_substeps=FIT_MAX_SUBSTEPS,
+                              replay=replay).run()
     return out
 
 

@@ -97,10 +97,14 @@ class GapRun:
 
     @property
     def command_shift(self) -> float:
-        """The command shift [in] that holds the valve's null in a P or PD loop at this run's gain (a PI loop's
-        integrator holds it: 0)."""
-        c = self.controller
-        return self.null_offset / c.Kp if c.Ki == 0.0 and c.Kp != 0.0 else 0.0
+        """The command shift [in] that holds the valve's null in this run (:func:`null_shift`)."""
+        return null_shift(self.controller, self.null_offset)
+
+
+def null_shift(c: Controller, offset: float) -> float:
+    """The command shift [in] that holds a valve null of ``offset`` [in] (the controller output's shift through the
+    feedback gain, null_u/k_fb) in a P or PD loop at its gain; a PI loop's integrator holds it: 0."""
+    return offset / c.Kp if c.Ki == 0.0 and c.Kp != 0.0 else 0.0
 
 
 def command_start(t: Array, r: Array) -> float:
