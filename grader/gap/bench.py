@@ -24,7 +24,6 @@ effect, the pair's), the 95 % intervals' coverage of the truth per effect, secon
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -90,18 +89,17 @@ def step_demand(station: Station) -> float:
 
 def finest_board(station: Station) -> int:
     """The finest ADC, in bits (:data:`COARSEST_BITS` to the realistic top, 16), whose step matters on ``station``
-    by the diagnosis' rule (:mod:`grader.gap.quantization`): at least its share of the step command, or not
-    dithered by the reading noise (the read-off criterion then taken as met). A finer board is below the naming
-    threshold, where the right answer is the note, not the effect (issue 10, item 3)."""
-    from grader.gap.quantization import ADC_SPAN, STEP_SHARE, dithers
+    by the diagnosis' rule (:mod:`grader.gap.quantization`) before any run is simulated: at least its share of the
+    step command (the stations' steady-state errors at rest lie below a step of a finer board, and a ramp's error
+    does not make it matter). A finer board is below the naming threshold, where the right answer is the note, not
+    the effect (issue 10, item 3)."""
+    from grader.gap.quantization import ADC_SPAN, STEP_SHARE
 
     p = station.params()
     command = max(r.amplitude for r in station_runs(station, None) if r.kind == "step")
-    sigma = station.noise_values()["position"]
     top = int(EFFECTS["sensor_quantization"].param("bits").typical[1])
     for bits in range(top, COARSEST_BITS, -1):
-        q = ADC_SPAN / 2.0**bits / p.Kpot
-        if q >= STEP_SHARE * command or not dithers(q, math.hypot(sigma, q / math.sqrt(12.0))):
+        if ADC_SPAN / 2.0**bits / p.Kpot >= STEP_SHARE * command:
             return bits
     return COARSEST_BITS
 

@@ -2,10 +2,13 @@
 
 The noise floor (:mod:`grader.gap.noise`) finds the readings' lattice step q [in]. It matters
 to the students when q is at least :data:`STEP_SHARE` of the step command or, where the reading noise
-does not dither it (below), of the smallest error they read off at the end of a step or ramp run
-(steady-state and ramp errors are then read off in counts of q; dithered, the readings averaged over
-the run's end resolve the error below q, and a 14- to 16-bit board, at 1 % of the ramp error, was
-named on an independent simulator's rigs where it mattered to nothing), or when the readings at the end of
+does not dither it (below), of the smallest error they read off at rest: at the end of a run whose
+command holds still there (a steady-state error is then read off in counts of q; dithered, the readings
+averaged over the run's end resolve the error below q, and a 14- to 16-bit board, at 1 % of the ramp
+error, was named on an independent simulator's rigs where it mattered to nothing; a ramp's readings
+sweep the lattice, hundreds of counts over the run's end, and its rounding averages out just as well:
+a 14- or 15-bit board the noise did not dither was named there from 2 % of a ramp error and 18 % of
+a PI ramp's), or when the readings at the end of
 a step run hold a limit cycle of a few counts that noise does not explain (white-noise RMS
 below :data:`QUIET` q). Then the diagnosis names ``sensor_quantization``, estimates the bits
 of a ±10 V board from q and the pot gain Kpot (LSB = q·Kpot = 20 V / 2**bits) and states what
@@ -49,7 +52,7 @@ PRINT_UNITS, DECIMAL_TOL, WHOLE_BITS = (1.0, 25.4, 2.54, 0.0254), 1e-3, 0.01
 
 @dataclass(frozen=True)
 class Quantization:
-    """The ADC's step q [in], its share of the step command and of the smallest error read off (nan: none
+    """The ADC's step q [in], its share of the step command and of the smallest error read off at rest (nan: none
     read off), the estimated bits and whether it matters."""
 
     step: float
@@ -71,7 +74,7 @@ class Quantization:
 
     def text(self) -> str:
         """One sentence for the notes or the verdict."""
-        readoff = (f", {100 * self.readoff_share:.2g} % of the smallest error read off at the end of a run"
+        readoff = (f", {100 * self.readoff_share:.2g} % of the smallest error read off at rest"
                    if self.readoff_share == self.readoff_share else "")
         core = (f"the readings are quantised in steps of {self.step:.3g} in ({100 * self.share:.2g} % of the step "
                 f"command{readoff}; about a {self.bits:.0f}-bit ±10 V ADC)")
@@ -127,10 +130,12 @@ def _limit_cycle(run: GapRun, q: float, sigma: float) -> bool:
 
 
 def _readoff_error(runs: Sequence[GapRun], q: float, sigma: float) -> float:
-    """The smallest error students read off [in]: |command − reading| averaged over the last :data:`TAIL`
-    of each step and ramp run, counting only errors clearly above zero (over q and 3 σ); nan if none."""
+    """The smallest error students read off at rest [in]: |command − reading| averaged over the last :data:`TAIL`
+    of each step and ramp run whose command moves less than q there (a moving command sweeps the readings across
+    the lattice, whose rounding averages out), counting only errors clearly above zero (over q and 3 σ); nan if
+    none."""
     errors = [abs(float(np.mean(r.r[tail] - r.y[tail]))) for r in runs if r.kind in ("step", "ramp")
-              for tail in [r.t >= r.t[-1] - TAIL]]
+              for tail in [r.t >= r.t[-1] - TAIL] if float(np.ptp(r.r[tail])) < q]
     clear = [e for e in errors if e > max(q, 3.0 * sigma)]
     return min(clear) if clear else float("nan")
 

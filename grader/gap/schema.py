@@ -144,11 +144,12 @@ class QuantizationInfo(_Frozen):
     adc_step: Value
     share_of_step: float = Field(description="ADC step as a fraction of the step command")
     share_of_readoff: float | None = Field(None, description="ADC step as a fraction of the smallest error read off "
-                                                             "at the end of a step or ramp run (None: no error clearly above 0)")
+                                                             "at rest, at the end of a step or ramp run whose command "
+                                                             "holds still there (None: no error clearly above 0)")
     bits: float = Field(description="estimated bits of a ±10 V ADC (from the step and Kpot)")
     limit_cycle: bool = Field(description="the step runs end in a limit cycle of a few counts")
     matters: bool = Field(description="named as an effect: at least 1 % of the step command or (not dithered) of an "
-                                      "error read off, or a limit cycle, and not a print precision")
+                                      "error read off at rest, or a limit cycle, and not a print precision")
     steady_state_error_band: Value = Field(description="± band round the set-point in which a P loop may settle")
     print_precision: bool = Field(False, description="a decimal step the reading noise dithers: the file's print "
                                                      "precision, not an ADC")

@@ -96,7 +96,8 @@ def _quantization(d: Diagnosis) -> str:
     if q is None or not q.matters:
         return ""
     cycle = " The step runs end in a limit cycle of a few counts." if q.limit_cycle else ""
-    readoff = "" if q.share_of_readoff is None else f", {100 * q.share_of_readoff:.2g} % of the smallest error read off"
+    readoff = ("" if q.share_of_readoff is None else
+               f", {100 * q.share_of_readoff:.2g} % of the smallest error read off at rest")
     return (f"The readings are quantised in steps of {show(q.adc_step.value, 'in')} ({100 * q.share_of_step:.2g} % of "
             f"the step command{readoff}; about a {q.bits:.0f}-bit ±10 V ADC).{cycle} A steady-state error can only be read "
             f"to ±{show(q.steady_state_error_band.value, 'in')}, and a P loop may settle anywhere in that band round "
