@@ -2,18 +2,15 @@
 
 The noise floor (:mod:`grader.gap.noise`) finds the readings' lattice step q [in]. It matters
 to the students when q is at least :data:`STEP_SHARE` of the step command or, where the reading noise
-does not dither it (below), of the smallest error they read off at rest: at the end of a run whose
-command holds still there (a steady-state error is then read off in counts of q; dithered, the readings
-averaged over the run's end resolve the error below q, and a 14- to 16-bit board, at 1 % of the ramp
-error, was named on an independent simulator's rigs where it mattered to nothing; a ramp's readings
-sweep the lattice, hundreds of counts over the run's end, and its rounding averages out just as well:
-a 14- or 15-bit board the noise did not dither was named there from 2 % of a ramp error and 18 % of
-a PI ramp's), or when the readings at the end of
-a step run hold a limit cycle of a few counts that noise does not explain (white-noise RMS
-below :data:`QUIET` q). Then the diagnosis names ``sensor_quantization``, estimates the bits
-of a ±10 V board from q and the pot gain Kpot (LSB = q·Kpot = 20 V / 2**bits) and states what
-it does to the steady-state error: with a P loop the position may settle anywhere in the
-±q/2 band round the set-point that reads as zero error.
+does not dither it (below), of the smallest error they read off at rest, at the end of a run whose
+command moves less than :data:`SWEEP` counts there (a steady-state error is then read off in counts of
+q; dithered, or swept across the lattice by a moving command, the readings averaged over the run's end
+resolve the error below q: docs/explanation/diagnosis.md#quantisation gives the boards that were named
+otherwise where they mattered to nothing), or when the readings at the end of a step run hold a limit
+cycle of a few counts that noise does not explain (white-noise RMS below :data:`QUIET` q). Then the
+diagnosis names ``sensor_quantization``, estimates the bits of a ±10 V board from q and the pot gain
+Kpot (LSB = q·Kpot = 20 V / 2**bits) and states what it does to the steady-state error: with a P loop
+the position may settle anywhere in the ±q/2 band round the set-point that reads as zero error.
 
 A lattice whose step is a power of ten in a length unit (0.0001 in, 0.001 mm), with the readings
 on it, is the precision the file was printed with, not an ADC (a ±10 V board's step through a pot
@@ -41,6 +38,10 @@ STEP_SHARE = 0.01
 QUIET = 0.3
 LIMIT_CYCLE_COUNTS = (1, 4)  # peak-to-peak readings, in counts, of a quantisation limit cycle
 TAIL = 0.3  # [s] end of a step run examined for a limit cycle
+#: Counts of q a command must move over a run's last TAIL for its error read off to be no error at rest: swept
+#: across that many counts, the readings' rounding averages out of the error to within q/(2·SWEEP) (generically;
+#: this lab's ramps move about 200 counts there).
+SWEEP = 10
 ADC_SPAN = 20.0  # [V] a ±10 V board
 #: White-noise RMS, in steps q, from which the noise dithers a lattice: exp(−2π²·DITHER²) < 1 % (Widrow's bound).
 DITHER = 0.5
@@ -131,11 +132,11 @@ def _limit_cycle(run: GapRun, q: float, sigma: float) -> bool:
 
 def _readoff_error(runs: Sequence[GapRun], q: float, sigma: float) -> float:
     """The smallest error students read off at rest [in]: |command − reading| averaged over the last :data:`TAIL`
-    of each step and ramp run whose command moves less than q there (a moving command sweeps the readings across
-    the lattice, whose rounding averages out), counting only errors clearly above zero (over q and 3 σ); nan if
-    none."""
+    of each step and ramp run whose command moves less than :data:`SWEEP` counts of q there (a moving command
+    sweeps the readings across the lattice, whose rounding averages out), counting only errors clearly above zero
+    (over q and 3 σ); nan if none."""
     errors = [abs(float(np.mean(r.r[tail] - r.y[tail]))) for r in runs if r.kind in ("step", "ramp")
-              for tail in [r.t >= r.t[-1] - TAIL] if float(np.ptp(r.r[tail])) < q]
+              for tail in [r.t >= r.t[-1] - TAIL] if float(np.ptp(r.r[tail])) < SWEEP * q]
     clear = [e for e in errors if e > max(q, 3.0 * sigma)]
     return min(clear) if clear else float("nan")
 

@@ -145,7 +145,8 @@ class QuantizationInfo(_Frozen):
     share_of_step: float = Field(description="ADC step as a fraction of the step command")
     share_of_readoff: float | None = Field(None, description="ADC step as a fraction of the smallest error read off "
                                                              "at rest, at the end of a step or ramp run whose command "
-                                                             "holds still there (None: no error clearly above 0)")
+                                                             "moves less than 10 counts there (None: no run ends at "
+                                                             "rest, or no error there clearly above 0)")
     bits: float = Field(description="estimated bits of a ±10 V ADC (from the step and Kpot)")
     limit_cycle: bool = Field(description="the step runs end in a limit cycle of a few counts")
     matters: bool = Field(description="named as an effect: at least 1 % of the step command or (not dithered) of an "

@@ -163,8 +163,8 @@ def test_a_decimal_lattice_the_noise_dithers_is_print_precision_not_an_adc(q: fl
                                                                           printed: bool, matters: bool) -> None:
     """A lattice that is a power of ten in a length unit, finer than the reading noise, is the file's print
     precision: a note, never the sensor_quantization verdict. An ADC's step keeps the documented rule (1 % of the
-    step command or of an error read off, or a limit cycle), the error read off only where the noise does not
-    dither the lattice (averaged over a run's end, dithered readings resolve the error below a step: 14- to 16-bit
+    step command or of an error read off at rest, or a limit cycle), the error read off only where the noise does
+    not dither the lattice (averaged over a run's end, dithered readings resolve the error below a step: 14- to 16-bit
     boards were named on an independent simulator's rigs where they mattered to nothing)."""
     from grader.gap.quantization import assess
 

@@ -169,14 +169,15 @@ def test_a_limit_cycle_of_a_few_counts_names_quantisation_below_one_percent() ->
 
 
 @pytest.mark.parametrize(("kpot", "sigma", "finest"), [
-    (1.2, 2.455e-4, 13),  # run A's 0229: 13 bits (q 1.63e-3 in) is 0.8 % of the 0.2 in command, 12 bits 1.6 %
-    (1.2, 1e-5, 13),      # quiet: an undithered board matters through an error at rest, unknown before a run
-    (0.45, 2e-3, 14),     # noisy: only a step of 1 % of the 0.2 in command matters (2.7e-3 in at 14 bits)
+    (1.2, 2.455e-4, 13),  # 13 bits (q 2.03e-3 in) is 1.02 % of the 0.2 in command, 14 bits 0.51 %
+    (1.2, 1e-5, 13),      # quiet: the same board (noise no longer moves it; an error at rest is unknown before a run)
+    (0.45, 2e-3, 14),     # 14 bits through a 0.45 V/in pot: 2.7e-3 in, 1.36 % of the command
 ])
 def test_the_benchmark_withholds_only_adcs_whose_step_matters(kpot: float, sigma: float, finest: int) -> None:
     """Issue 10, item 3: below the threshold the right answer is the note, so a withheld ADC is drawn from 8 bits
     to the finest board whose step is at least 1 % of that station's step command (the only share of the rule
-    known before the runs are simulated: the stations' errors at rest lie below a finer board's step)."""
+    known before the runs are simulated; a finer board that would matter through an error at rest or a limit
+    cycle is not drawn)."""
     station = load_station("default")
     station = station.model_copy(update={"truth": {**station.truth, "Kpot": f"{kpot} V/in"},
                                          "noise": {**station.noise, "position": f"{sigma} in"}})
