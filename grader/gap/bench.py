@@ -105,11 +105,18 @@ def finest_board(station: Station) -> int:
 
 
 def effect_params(name: str, rng: np.random.Generator, strength: float | None = None,
-                  demand: float = 50.0, finest: int | None = None) -> dict[str, float]:
+                  demand: float = 50.0, finest: int | None = None,
+                  form: np.random.Generator | None = None) -> dict[str, float]:
     """A magnitude for ``name``: random over its realistic range, or at ``strength`` × the range's top;
     a current limit lies between :data:`SATURATION_SHARE` of the step runs' ``demand`` [mA] and it; an ADC
-    has :data:`COARSEST_BITS` to ``finest`` bits (:func:`finest_board`; None: the realistic range's top)."""
+    has :data:`COARSEST_BITS` to ``finest`` bits (:func:`finest_board`; None: the realistic range's top).
+    A spool's form comes from ``form``, a stream of its own (so the other draws stay as they were): first or
+    second order, equally often, the second with a damping uniform over the realistic range (two-stage
+    flapper-nozzle valves, which the paper's rig has, are second order on their data sheets); None: first order."""
     out: dict[str, float] = {}
+    if name == "valve_dynamics" and form is not None and form.uniform() < 0.5:
+        out["order"] = 2.0
+        out["zeta"] = float(form.uniform(*EFFECTS[name].param("zeta").typical))
     for p in EFFECTS[name].params:
         if p.name in ("order", "zeta"):
             continue
@@ -176,6 +183,7 @@ class BenchConfig:
     jobs: int = 1  # datasets generated and diagnosed at once (each diagnosis then on one core)
     cli_sample: int = 0  # datasets on which `grader diagnose` itself is timed, after the rest
     valve_null: float = 0.0  # [mA] each dataset's valve null in the runs is drawn within ±valve_null (0: none)
+    first_order_spools: bool = False  # every spool lag first order, as drawn before 28 November 2026
 
 
 @dataclass
@@ -265,6 +273,10 @@ def coverage(d: object, truth: EffectSet) -> dict[str, tuple[float, float, float
             if effect in truth and pname in truth.values[effect] and v.interval is not None:  # held: not fitted
                 lo, hi = v.interval
                 out[f"{effect}:{pname}"] = (truth.value(effect, pname), v.value, lo, hi)
+        spool, damping = out.pop("valve_dynamics:tau", None), out.pop("valve_dynamics:zeta", None)
+        if spool is not None:
+            held = {k.rpartition(".")[2]: v.value for k, v in cand.params.items()}
+            out.update(_spool_coverage(truth, spool, damping, held.get("order", 1.0), held.get("zeta", 0.7)))
         break
     static = d.static_evidence.get("viscous_friction", {}).get("B")  # type: ignore[attr-defined]
     lg = d.loop_gain  # type: ignore[attr-defined]
@@ -275,6 +287,24 @@ def coverage(d: object, truth: EffectSet) -> dict[str, tuple[float, float, float
         lo, hi = static.interval or (static.value, static.value)
         out["viscous_friction:B"] = (truth.value("viscous_friction", "B"), static.value, lo, hi)
     return out
+
+
+def _lag(order: float, zeta: float) -> float:
+    """A spool's low-frequency lag per unit tau: tau for a first-order one, 2·zeta·tau for a second-order one."""
+    return 2.0 * zeta if order == 2 else 1.0
+
+
+def _spool_coverage(truth: EffectSet, fit: tuple[float, float, float, float],
+                    damping: tuple[float, float, float, float] | None, order: float, zeta: float
+                    ) -> dict[str, tuple[float, float, float, float]]:
+    """A spool's entries: its tau (and, where fitted, its ``damping``) where the fitted form (``order``, damping
+    ``zeta``) is the withheld one's, else its low-frequency lag [s] (``valve_dynamics:lag``), the one thing the
+    data fix for a spool of another form."""
+    t_order, t_zeta = truth.value("valve_dynamics", "order"), truth.value("valve_dynamics", "zeta")
+    if t_order == order and (order == 1 or damping is not None or t_zeta == zeta):
+        return {"valve_dynamics:tau": fit, **({"valve_dynamics:zeta": damping} if damping and order == 2 else {})}
+    k, tk = _lag(order, zeta), _lag(t_order, t_zeta)
+    return {"valve_dynamics:lag": (fit[0] * tk, fit[1] * k, fit[2] * k, fit[3] * k)}
 
 
 def plan(cfg: BenchConfig, rng: np.random.Generator) -> list[tuple[tuple[str, ...], float | None]]:

@@ -50,13 +50,14 @@ def tasks(cfg: BenchConfig, root: Path) -> list[Task]:
     """Every planned dataset, drawn in order from the seed (the same plan whatever is reused)."""
     rng = np.random.default_rng(cfg.seed)
     nulls = np.random.default_rng([cfg.seed, 1])  # apart: the same rigs and effects with and without a null
+    forms = None if cfg.first_order_spools else np.random.default_rng([cfg.seed, 2])  # apart: a spool's form
     base = load_station("default")
     out = []
     for k, (names, strength) in enumerate(plan(cfg, rng)):
         station = random_station(base, rng)
         demand = step_demand(station)
         finest = finest_board(station) if "sensor_quantization" in names else None
-        truth = EffectSet({n: effect_params(n, rng, strength, demand, finest) for n in names if n != NONE})
+        truth = EffectSet({n: effect_params(n, rng, strength, demand, finest, forms) for n in names if n != NONE})
         label = "+".join(names)
         null = float(nulls.uniform(-cfg.valve_null, cfg.valve_null)) if cfg.valve_null else 0.0
         out.append(Task(root / f"{k:04d}_{label}", label, station, truth, int(rng.integers(2**31)), strength,

@@ -77,7 +77,7 @@ def _bench(args: argparse.Namespace) -> int:
     cfg = BenchConfig(n=args.n, pairs=args.pairs, seed=args.seed, effects=tuple(_effects(args.effects, TRUTHS) or ()) or None,
                       sweep=args.sweep, workdir=output_folder(args.workdir) if args.workdir else None,
                       friction_test=not args.no_friction_test, jobs=args.jobs, cli_sample=args.time_cli,
-                      valve_null=args.valve_null)
+                      valve_null=args.valve_null, first_order_spools=args.first_order_spools)
     print(run_benchmark(cfg).text())
     return 0
 
@@ -117,4 +117,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--valve-null", type=float, default=0.0, metavar="MA",
                    help="each dataset's valve rests off its null by a current drawn within ±MA mA in the closed-loop "
                         "runs (not an effect: 'none' stays the right verdict; default: 0, the runs hold no null)")
+    p.add_argument("--first-order-spools", action="store_true",
+                   help="every withheld spool lag first order, as the benchmark drew them before 28 November 2026 "
+                        "(default: first or second order, equally often, the second with a damping of 0.5 to 1)")
     p.set_defaults(handler=_bench)

@@ -101,21 +101,24 @@ def _second_order_spool(objs: Sequence[RunObjective], base: baseline_mod.Baselin
                         scored: list[Scored], built: list[SchemaCandidate], rk: Ranking, noise_nrmse: Array,
                         before: CrossValidation, executor: Executor | None
                         ) -> tuple[SearchResult, list[Scored], list[SchemaCandidate], Ranking, str | None]:
-    """A delay verdict: the second-order spool fitted from the delay's optimum becomes the ``valve_dynamics``
-    candidate where it fits the runs better than the first-order lag, and the delay is ranked again with it
-    (:mod:`grader.gap.spool`). A spool (of either order) faster than the realistic range's
-    (:data:`~grader.gap.spool.TYPICAL_TAU`) is then no lookalike of the delay: taken off its ties, with a note."""
-    k = [s.candidate.effect for s in found.states].index(spool.SPOOL)
-    alt = spool.fit_against_delay(objs, base.params, found.states[rk.verdict], found.states[k], executor=executor)
+    """A delay or spool verdict: the second-order spool (:func:`grader.gap.spool.fit_against_delay`) becomes the
+    ``valve_dynamics`` candidate where it fits the runs better than the first-order lag, and the verdict is ranked
+    again with it, kept (:mod:`grader.gap.spool`; a first-order lag the verdict, the delay beside it: run A's 0107,
+    a 71 Hz spool of damping 0.72, which replayed as a first-order lag the delay beat by 332). A spool (of either
+    order) faster than the realistic range's (:data:`~grader.gap.spool.TYPICAL_TAU`), even at the least realistic
+    damping, is then no lookalike of the delay: taken off its ties, with a note."""
+    k, j = ([s.candidate.effect for s in found.states].index(e) for e in (spool.SPOOL, spool.DELAY))
+    alt = spool.fit_against_delay(objs, base.params, found.states[j], found.states[k], executor=executor)
     s_alt = scored_of(alt)[0]
     if s_alt.fit_ms < scored[k].fit_ms:
         found, scored, built, rk = _replaced(found, scored, built, rk.verdict, alt, s_alt, noise_nrmse, before, objs,
                                              base)
-    tau = spool.fitted_tau(found.states[k])
-    if k not in rk.ties or tau >= spool.TYPICAL_TAU[0]:
+    form = spool.fitted(found.states[k])
+    tau, order, zeta = form["tau"], form["order"], form["zeta"]
+    if k not in rk.ties or spool.slowest_tau(tau, order, zeta) >= spool.TYPICAL_TAU[0]:
         return found, scored, built, rk, None
-    order = found.states[k].candidate.fixed.get(spool.SPOOL, {}).get("order", 1.0)
-    return found, scored, built, replace(rk, ties=[i for i in rk.ties if i != k]), spool.too_fast_note(tau, order)
+    return (found, scored, built, replace(rk, ties=[i for i in rk.ties if i != k]),
+            spool.too_fast_note(tau, order, zeta))
 
 
 def _replaced(found: SearchResult, scored: list[Scored], built: list[SchemaCandidate], verdict: int,
@@ -135,13 +138,13 @@ def _replaced(found: SearchResult, scored: list[Scored], built: list[SchemaCandi
 
 def _replayed(objs: Sequence[RunObjective], base: baseline_mod.Baseline, lag: SearchResult, found: SearchResult,
               scored: list[Scored], built: list[SchemaCandidate], rk: Ranking, told: list[int], noise_nrmse: Array,
-              before: CrossValidation, sigma: float, executor: Executor | None
+              before: CrossValidation, sigma: float, executor: Executor | None, never: Sequence[int] = ()
               ) -> tuple[SearchResult, list[Scored], list[SchemaCandidate], Ranking, replay.Replay, str]:
     """The candidates ``told`` (the verdict, its ties and the other effects that explain clearly more than ``none``
     and score within :data:`grader.gap.replay.SPAN` of it) compared on the replayed runs (:mod:`grader.gap.replay`),
     a spool in both its forms where ``found`` holds the second-order one and ``lag`` the first-order lag; where the
-    lag's form wins the verdict, its fit is restored. Returns the search, scores, report entries and ranking, the
-    replay and why."""
+    lag's form wins the verdict, its fit is restored; ``never`` become no lookalikes. Returns the search, scores,
+    report entries and ranking, the replay and why."""
     names = [s.candidate.effect for s in found.states]
     k = names.index(spool.SPOOL) if spool.SPOOL in names else -1
     forms = [(i, lag.states[i] if i == k else found.states[i]) for i in told]  # the spool's default form: a lag
@@ -149,7 +152,7 @@ def _replayed(objs: Sequence[RunObjective], base: baseline_mod.Baseline, lag: Se
         forms.append((k, found.states[k]))
     runs = [o.run for o in objs]
     rp = replay.compare(runs, base.params, [s for _, s in forms], [i for i, _ in forms], sigma, executor=executor)
-    rk, why = replay.ranking(rk, names, rp)
+    rk, why = replay.ranking(rk, names, rp, never)
     won = forms[rp.form[rp.indices.index(k)]][1] if rk.verdict == k else None  # the spool's better replayed form
     if won is not None and won is lag.states[k] and won is not found.states[k]:  # the lag's form won: its fit
         moved = rk
@@ -185,15 +188,16 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
                  for st, cv, sc in zip(found.states, found.cvs, rk.scores)]
         rk, why = evidence.coulomb_tie(rk, names, built, fr)
         lag, fast = found, None
-        if names[rk.verdict] == spool.DELAY and spool.SPOOL in names:
+        if names[rk.verdict] in (spool.DELAY, spool.SPOOL) and {spool.DELAY, spool.SPOOL} <= set(names):
             found, scored, built, rk, fast = _second_order_spool(objs, base, found, scored, built, rk, noise_nrmse,
                                                                  before, executor)
         rp = None
         told = [rk.verdict, *rk.ties, *(i for i in explaining(scored, noise_nrmse) if i not in (rk.verdict, *rk.ties)
                                         and np.log(rk.scores[i] / rk.scores[rk.verdict]) < replay.SPAN)]
         if names[rk.verdict] != NONE and len(told) > 1 and not why and replay.replayable(runs):
+            never = [names.index(spool.SPOOL)] if fast else []  # too fast for a small rig's valve: no lookalike
             found, scored, built, rk, rp, why = _replayed(objs, base, lag, found, scored, built, rk, told, noise_nrmse,
-                                                          before, sigma, executor)
+                                                          before, sigma, executor, never)
         extra, alone = None, True
         if names[rk.verdict] != NONE and second is not False:
             first = found.states[rk.verdict]
@@ -237,6 +241,8 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
                                             "it is not named") if w)
                 extra, why2 = None, ""
                 replays = [*(r for r in replays if r.of != "second_effect"), dropped]
+    if extra is not None:  # a lookalike of the verdict that is named on top of it is no longer a doubt
+        rk = replace(rk, ties=[i for i in rk.ties if names[i] != extra.state.candidate.names[-1]])
     cands = [built[i] for i in rk.order]
     aug, entry = found.states[rk.verdict], built[rk.verdict]
     verdict = _verdict(rk, names)

@@ -150,6 +150,18 @@ def _none_from_neutral(full: BatchFitter, ends: list[FitState], ref: int) -> Fit
     return min(none, again, key=lambda s: s.cost)
 
 
+def search_from(objectives: Sequence[RunObjective], base: RigParams, candidate: Candidate, starts: Sequence[Array],
+                owner: Sequence[int], *, executor: Executor | None = None) -> SearchResult:
+    """``candidate`` fitted as :func:`search` fits an effect, from each θ of ``starts`` (its linear coordinates
+    fitted on the short windows with its magnitudes held, the best start of each ``owner`` kept, then all
+    coordinates on the longer window and the whole runs); the best end, cross-validated."""
+    short, middle, full = (_fitter(objectives, base, w, executor) for w in (PROFILE_WINDOW, FIRST_WINDOW, None))
+    states = short.profile([(candidate, np.asarray(s, dtype=float)) for s in starts], owner, rounds=PROFILE_ROUNDS)
+    states = middle.fit(middle.rebase(states), rounds=FIRST_ROUNDS, final_jacobian=False)
+    best = min(full.fit(full.rebase(states), rounds=FULL_ROUNDS), key=lambda s: s.cost)
+    return SearchResult([best], cross_validate(full, [best]), full.lengths)
+
+
 def refit(objectives: Sequence[RunObjective], base: RigParams, start: FitState, *,
           executor: Executor | None = None) -> SearchResult:
     """``start``'s candidate fitted on the whole runs from ``start``'s θ (no profile, no restarts) and

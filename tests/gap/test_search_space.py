@@ -6,13 +6,14 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from grader.gap.bench import ERROR, BenchConfig
+from grader.gap.bench import ERROR, BenchConfig, coverage
 from grader.gap.bench_report import render
 from grader.gap.bench import GENERATOR
 from grader.gap.bench_run import _reusable, run_task, tasks, time_cli
@@ -20,6 +21,7 @@ from grader.gap.candidates import NOT_FROM_RUNS, WEAK_STRENGTH, make_candidates
 from grader.gap.evidence import viscous_unexcluded
 from grader.gap.schema import LoopGainInfo, Value, Verdict
 from grader.identify.flow import FlowGainFit
+from grader.model.effects import EffectSet
 from grader.stations import load_station
 
 P = load_station("default").params()
@@ -111,6 +113,56 @@ def test_the_benchmark_plan_is_the_seeds_and_a_dataset_is_reused_only_when_it_is
     kept["effects"], kept["valve_null"] = task.truth.to_quantities(), f"{nulled[2].null!r} mA"
     truth.write_text(json.dumps(kept), encoding="utf-8")
     assert _reusable(nulled[2]) and not _reusable(task)  # a dataset with a null is not one without
+
+
+def test_the_benchmark_draws_spools_of_both_orders_apart_from_every_other_draw(tmp_path: Path) -> None:
+    """Half the withheld spools are second order, with a damping over the realistic range (0.5 to 1); their form
+    comes from a stream of its own, so with ``first_order_spools`` every other draw (rig, magnitudes, seed) is the
+    same and every spool first order."""
+    cfg = BenchConfig(n=40, seed=5, effects=("valve_dynamics", "coulomb_friction"), friction_test=False)
+    drawn, first = tasks(cfg, tmp_path), tasks(replace(cfg, first_order_spools=True), tmp_path)
+    spools = [t.truth.values["valve_dynamics"] for t in drawn if t.label == "valve_dynamics"]
+    second = [s for s in spools if s["order"] == 2]
+    assert 10 <= len(second) <= 30 and all(0.5 <= s["zeta"] <= 1.0 for s in second)
+    assert len({s["zeta"] for s in second}) == len(second)
+    assert all(t.truth.values["valve_dynamics"]["order"] == 1 for t in first if t.label == "valve_dynamics")
+    for a, b in zip(drawn, first):
+        assert (a.station, a.seed) == (b.station, b.seed)
+        assert {k: dict(v) | {"order": 1.0, "zeta": 0.7} if k == "valve_dynamics" else dict(v)
+                for k, v in a.truth.values.items()} == {k: dict(v) for k, v in b.truth.values.items()}
+
+
+@pytest.mark.parametrize(("order", "zeta", "fitted", "key", "scale"), [
+    (1.0, 0.7, {}, "valve_dynamics:tau", (1.0, 1.0)),  # the withheld form: its tau
+    (2.0, 0.7, {"order": 2.0, "zeta": 0.7}, "valve_dynamics:tau", (1.0, 1.0)),  # a damping held at the truth's
+    (2.0, 0.55, {"order": 2.0, "zeta": 0.7}, "valve_dynamics:lag", (1.1, 1.4)),  # 2·0.55·tau against 1.4·tau
+    (2.0, 0.9, {}, "valve_dynamics:lag", (1.8, 1.0)),  # fitted as a first-order lag: its tau is the lag
+    (1.0, 0.7, {"order": 2.0, "zeta": 0.8}, "valve_dynamics:lag", (1.0, 1.6)),  # a lag fitted as second order
+])
+def test_a_spools_coverage_is_of_its_tau_in_the_withheld_form_else_of_its_low_frequency_lag(
+        order: float, zeta: float, fitted: dict[str, float], key: str, scale: tuple[float, float]) -> None:
+    truth = EffectSet({"valve_dynamics": {"tau": 0.002, "order": order, "zeta": zeta}})
+    params = {"tau": Value(value=0.0021, unit="s", interval=(0.0019, 0.0023)),
+              **{k: Value(value=v, unit="dimensionless", interval=None) for k, v in fitted.items()}}
+    (name, got), = coverage(_named(params), truth).items()
+    t, k = scale
+    assert name == key and got == pytest.approx((0.002 * t, 0.0021 * k, 0.0019 * k, 0.0023 * k))
+
+
+def test_a_second_order_spools_fitted_damping_is_covered_beside_its_tau() -> None:
+    truth = EffectSet({"valve_dynamics": {"tau": 0.002, "order": 2.0, "zeta": 0.62}})
+    params = {"tau": Value(value=0.0021, unit="s", interval=(0.0019, 0.0023)),
+              "order": Value(value=2.0, unit="dimensionless", interval=None),
+              "zeta": Value(value=0.6, unit="dimensionless", interval=(0.55, 0.65))}
+    assert coverage(_named(params), truth) == {"valve_dynamics:tau": (0.002, 0.0021, 0.0019, 0.0023),
+                                               "valve_dynamics:zeta": (0.62, 0.6, 0.55, 0.65)}
+
+
+def _named(params: dict[str, Value]) -> SimpleNamespace:
+    """A diagnosis whose verdict is a spool fitted with ``params``."""
+    cand = SimpleNamespace(effect="valve_dynamics", params=params)
+    return SimpleNamespace(verdict=SimpleNamespace(effect="valve_dynamics", second_effect=None), candidates=[cand],
+                           static_evidence={}, loop_gain=None)
 
 
 def test_a_benchmark_dataset_whose_diagnosis_fails_is_a_counted_miss_not_the_end(tmp_path: Path) -> None:

@@ -253,7 +253,7 @@ def test_a_benchmark_dataset_without_the_friction_test_has_no_friction_file_and_
 
 @cache
 def _seed_300_plan() -> tuple[Task, ...]:
-    return tuple(tasks(BenchConfig(n=25, pairs=60, seed=300, friction_test=False), Path("case")))
+    return tuple(tasks(BenchConfig(n=25, pairs=60, seed=300, friction_test=False, first_order_spools=True), Path("case")))
 
 
 def _seed_300_dataset(index: int, tmp_path: Path) -> tuple[str, Path]:
