@@ -10,7 +10,8 @@ Each effect magnitude m is the parameter's value divided by the top of its reali
 (from :mod:`grader.model.effects`), so every coordinate is O(1).
 ``sensor_noise`` and ``sensor_quantization`` are measurement noise, not candidates
 (see :mod:`grader.gap.noise`); ``valve_dynamics`` is fitted as a first-order spool lag, and as a second-order
-spool where the verdict is a delay (:mod:`grader.gap.spool`).
+spool where the verdict is a delay or that lag, or a delay or the lag on top is a verdict's best addition
+(:mod:`grader.gap.spool`).
 """
 
 from __future__ import annotations

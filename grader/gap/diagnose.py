@@ -191,11 +191,10 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
         if names[rk.verdict] in (spool.DELAY, spool.SPOOL) and {spool.DELAY, spool.SPOOL} <= set(names):
             found, scored, built, rk, fast = _second_order_spool(objs, base, found, scored, built, rk, noise_nrmse,
                                                                  before, executor)
-        rp = None
+        rp, never = None, [names.index(spool.SPOOL)] if fast else []  # too fast for a small rig's valve: no lookalike
         told = [rk.verdict, *rk.ties, *(i for i in explaining(scored, noise_nrmse) if i not in (rk.verdict, *rk.ties)
                                         and np.log(rk.scores[i] / rk.scores[rk.verdict]) < replay.SPAN)]
         if names[rk.verdict] != NONE and len(told) > 1 and not why and replay.replayable(runs):
-            never = [names.index(spool.SPOOL)] if fast else []  # too fast for a small rig's valve: no lookalike
             found, scored, built, rk, rp, why = _replayed(objs, base, lag, found, scored, built, rk, told, noise_nrmse,
                                                           before, sigma, executor, never)
         extra, alone = None, True
@@ -209,9 +208,12 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
                 if better is not None and (rp is not None or not why):  # the verdict's own fit: the better
                     # optimum its pair search led to (a tie the friction test broke keeps its ranking; the ties the
                     # replay told apart stay apart)
+                    replayed = rk.ties
                     found, scored, built, rk = _replaced(found, scored, built, rk.verdict, *better, noise_nrmse,
                                                          before, objs, base)
-                    rk = rk if rp is None else replace(rk, ties=rp.kept(rk.verdict, rk.ties))
+                    if rp is not None:  # the ties the replay kept or added stay, those it told apart stay apart
+                        kept = [i for i in dict.fromkeys([*replayed, *rk.ties]) if i not in never and i != rk.verdict]
+                        rk = replace(rk, ties=rp.kept(rk.verdict, kept))
         elif second is not False and _needs_second(found.states[rk.verdict], found.lengths, np.sqrt(NONE_GAP) * noise_nrmse):
             rk, extra = beyond_none(objs, base, found, rk, candidates, noise_nrmse, sigma, before, executor)
             alone = extra is None

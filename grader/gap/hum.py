@@ -54,8 +54,8 @@ def lines(runs: Sequence[GapRun]) -> tuple[float, ...]:
     """The mains frequencies [Hz] (:data:`MAINS`) whose sine and cosine explain more of the runs' readings at rest
     (before each command, less a straight line) than the reading noise would: an F test pooled over the runs with
     :data:`MIN_REST` or more readings at rest, at :data:`ALPHA`. The instability run takes no part: a rig that rests
-    at its gain before the command already rings near the critical frequency (two of run A's 310 rigs, which have
-    no pickup, showed a 60 Hz or an aliased 180 Hz line there at 1e-13 and 3e-4, and in no other run)."""
+    at its gain before the command already rings near the critical frequency (run A's 0001, which has no pickup,
+    showed a 60 Hz line there at p = 3e-13, and in no other run)."""
     found = []
     for f in MAINS:
         line = noise = 0.0

@@ -114,7 +114,8 @@ def pick_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first
     one (:func:`_replayed_second`)."""
     found = second_effect(objs, base.params, first, others, executor=executor,
                           keep=lambda ends, lengths: could_pass(ends, lengths, floor_nrmse, first_scored))
-    found = _second_order_addition(objs, base, first, found, floor_nrmse, executor)
+    reference = min(scored_of(found)[-1], first_scored, key=lambda c: scores([c])[0])
+    found = _second_order_addition(objs, base, first, found, floor_nrmse, reference, executor)
     scored = scored_of(found)
     if scores([first_scored])[0] < scores([scored[-1]])[0]:
         scored[-1] = first_scored
@@ -153,12 +154,14 @@ def pick_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first
 
 
 def _second_order_addition(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState,
-                           found: SearchResult, floor_nrmse: Array, executor: Executor | None) -> SearchResult:
+                           found: SearchResult, floor_nrmse: Array, alone: Scored,
+                           executor: Executor | None) -> SearchResult:
     """``found`` (a pair search: the additions, then ``first`` alone) with the spool added on top as a second-order
     spool (:func:`grader.gap.spool.fit_against_delay`) where both a delay and a spool were added, the better of
     the two fits best of the additions, and the second-order form fits all runs clearly better than the first-order
     lag (its mean square lower by :data:`~grader.gap.verdict.TIE_FIT` of the floor's, the bar of a lookalike),
-    scores better held out, and passes the bar of a second effect itself: on run A (seed 300), three second-order
+    scores better held out, and passes the bar of a second effect itself against ``alone`` (the first effect
+    alone as :func:`pick_second` scores it): on run A (seed 300), three second-order
     spools on top of a current limit or a backlash were named as a delay on top. Without the first condition, a
     first-order lag on top of a backlash took the second-order form by 4 % of its mean square, and a delay on top of
     a current limit became a spool's lookalike and lost its name; without the second, a 4.5 ms lag on top of a
@@ -174,7 +177,7 @@ def _second_order_addition(objs: Sequence[RunObjective], base: baseline_mod.Base
         return found
     alt = spool.fit_against_delay(objs, base.params, found.states[j], found.states[k], head=first.theta,
                                   executor=executor)
-    new, old, alone = scored_of(alt)[0], *(scored_of(found)[i] for i in (k, -1))
+    new, old = scored_of(alt)[0], scored_of(found)[k]
     held = scores([new, old])
     passes = decide([new, alone], floor_nrmse, reference=1, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)[0] == 0
     if new.fit_ms >= old.fit_ms - TIE_FIT * float(np.mean(floor_nrmse**2)) or held[0] >= held[1] or not passes:

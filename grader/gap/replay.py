@@ -142,7 +142,7 @@ def _why(names: Sequence[str], rp: Replay, old: int, v: int, tied: Sequence[int]
     if gone:
         return f"{REPLAYED}, the runs tell {names[v]} apart from {', '.join(names[i] for i in gone)}{also}"
     if added:
-        return f"{REPLAYED}, the runs do not tell {names[v]} apart from {', '.join(names[i] for i in added)}"
+        return f"{REPLAYED}, the runs do not tell {names[v]} apart from {', '.join(names[i] for i in tied)}"
     return f"{REPLAYED}, the runs do not tell them apart either" if tied else ""
 
 
@@ -152,10 +152,12 @@ def ranking(rk: Ranking, names: Sequence[str], rp: Replay, never: Sequence[int] 
     tell apart from the pick (the closed loop told them apart by the noise-driven motion it cannot follow: an
     independent simulator's 1.8 ms delay, which a second-order spool fitted the closed-loop runs clearly better, was
     named a spool outright though the replayed runs followed the delay 4.8 better), except ``never`` (a spool too
-    fast to be a small rig's valve), and why ('' where it decides nothing or changes nothing)."""
+    fast to be a small rig's valve: neither a lookalike nor the pick), and why ('' where it decides nothing or
+    changes nothing)."""
     if not rp.decides:
         return rk, ""
-    old, v = rk.verdict, rp.pick(rk.verdict)
+    old = rk.verdict
+    v = old if rp.pick(old) in never else rp.pick(old)
     ties = rp.kept(v, [i for i in dict.fromkeys([old, *rk.ties, *rp.indices]) if i != v and i not in never])
     gone = [i for i in [old, *rk.ties] if i != v and i not in ties]
     added = [i for i in ties if i not in (old, *rk.ties)]

@@ -152,9 +152,10 @@ def _none_from_neutral(full: BatchFitter, ends: list[FitState], ref: int) -> Fit
 
 def search_from(objectives: Sequence[RunObjective], base: RigParams, candidate: Candidate, starts: Sequence[Array],
                 owner: Sequence[int], *, executor: Executor | None = None) -> SearchResult:
-    """``candidate`` fitted as :func:`search` fits an effect, from each θ of ``starts`` (its linear coordinates
+    """``candidate`` fitted from each θ of ``starts`` through :func:`search`'s first stages (its linear coordinates
     fitted on the short windows with its magnitudes held, the best start of each ``owner`` kept, then all
-    coordinates on the longer window and the whole runs); the best end, cross-validated."""
+    coordinates on the longer window and the whole runs), without its restarts (from the baseline's linear
+    coordinates, off the cliff, from ``none`` or a nesting optimum); the best end, cross-validated."""
     short, middle, full = (_fitter(objectives, base, w, executor) for w in (PROFILE_WINDOW, FIRST_WINDOW, None))
     states = short.profile([(candidate, np.asarray(s, dtype=float)) for s in starts], owner, rounds=PROFILE_ROUNDS)
     states = middle.fit(middle.rebase(states), rounds=FIRST_ROUNDS, final_jacobian=False)

@@ -13,7 +13,8 @@ listed as such. The verdict stays (ranked freely, the spool took 8 of run A's 25
 floor apart; the default spool is first order); the replayed runs then decide between them
 (:mod:`grader.gap.replay`). With the damping held at 0.7 and the spool fitted only from a delay verdict's optimum,
 11 of run A's 14 second-order spools (dampings 0.54 to 0.97, corners 40 to 294 Hz) were missed (named a delay, or
-listed beside one); now 4, each listed beside a delay (corners of 130 to 290 Hz).
+listed beside one); now 4, each named a delay or a spool with the other listed beside it (corners of 130 to
+290 Hz).
 """
 
 from __future__ import annotations

@@ -71,6 +71,23 @@ def test_a_replayed_candidate_the_replay_cannot_tell_from_the_verdict_becomes_it
     assert ("the runs do not tell sampling_delay apart from valve_hysteresis" in text) is bool(ties)
 
 
+def test_a_spool_too_fast_for_a_small_rigs_valve_is_neither_the_replays_lookalike_nor_its_pick() -> None:
+    """Candidate 2 (the spool) is ``never``: within EVIDENCE of the delay it is not listed, and fitting the replayed
+    runs 7 better it does not take the verdict; the hysteresis (3), replayed too and within EVIDENCE, is listed."""
+    for excess in ((3.0, 0.0, 2.0), (7.0, 0.0, 5.0)):
+        rp = Replay((1, 2, 3), excess, (0, 1, 2), 2, 1.0)
+        rk, text = replay.ranking(_ranking(1, []), NAMES, rp, never=[2])
+        assert (rk.verdict, rk.ties) == (1, [3]) and "valve_dynamics" not in text
+
+
+def test_the_replays_text_names_every_lookalike_it_keeps() -> None:
+    """A closed-loop tie it cannot break (2) and a replayed candidate it adds (3) are both named."""
+    rp = Replay((1, 2, 3), (0.0, 1.0, 2.0), (0, 1, 2), 1, 1.0)
+    rk, text = replay.ranking(_ranking(1, [2]), NAMES, rp)
+    assert rk.ties == [2, 3]
+    assert "the runs do not tell sampling_delay apart from valve_dynamics, valve_hysteresis" in text
+
+
 @pytest.mark.parametrize(("lag", "second_order", "form"), [
     (1000.0, 1000.0 - EVIDENCE + 1.0, 1),  # within EVIDENCE of the default: the first-order lag stands
     (1000.0, 1000.0 - EVIDENCE - 1.0, 2),  # clearly better: the second-order form stands
