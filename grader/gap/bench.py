@@ -183,7 +183,7 @@ class BenchConfig:
     jobs: int = 1  # datasets generated and diagnosed at once (each diagnosis then on one core)
     cli_sample: int = 0  # datasets on which `grader diagnose` itself is timed, after the rest
     valve_null: float = 0.0  # [mA] each dataset's valve null in the runs is drawn within ±valve_null (0: none)
-    first_order_spools: bool = False  # every spool lag first order, as drawn before 28 November 2026
+    first_order_spools: bool = False  # every spool lag first order, as drawn before the afternoon of 27 November 2026
 
 
 @dataclass

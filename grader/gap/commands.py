@@ -118,6 +118,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="each dataset's valve rests off its null by a current drawn within ±MA mA in the closed-loop "
                         "runs (not an effect: 'none' stays the right verdict; default: 0, the runs hold no null)")
     p.add_argument("--first-order-spools", action="store_true",
-                   help="every withheld spool lag first order, as the benchmark drew them before 28 November 2026 "
-                        "(default: first or second order, equally often, the second with a damping of 0.5 to 1)")
+                   help="every withheld spool lag first order, as the benchmark drew them before the afternoon of "
+                        "27 November 2026 (default: first or second order, equally often, the second with a damping "
+                        "of 0.5 to 1)")
     p.set_defaults(handler=_bench)

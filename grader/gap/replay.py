@@ -156,8 +156,8 @@ def ranking(rk: Ranking, names: Sequence[str], rp: Replay, never: Sequence[int] 
     changes nothing)."""
     if not rp.decides:
         return rk, ""
-    old = rk.verdict
-    v = old if rp.pick(old) in never else rp.pick(old)
+    old, pick = rk.verdict, rp.pick(rk.verdict)
+    v = old if pick in never else pick
     ties = rp.kept(v, [i for i in dict.fromkeys([old, *rk.ties, *rp.indices]) if i != v and i not in never])
     gone = [i for i in [old, *rk.ties] if i != v and i not in ties]
     added = [i for i in ties if i not in (old, *rk.ties)]
