@@ -156,9 +156,10 @@ def pick_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first
 def _second_order_addition(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState,
                            found: SearchResult, floor_nrmse: Array, alone: Scored,
                            executor: Executor | None) -> SearchResult:
-    """``found`` (a pair search: the additions, then ``first`` alone) with the spool added on top as a second-order
-    spool (:func:`grader.gap.spool.fit_against_delay`) where both a delay and a spool were added, the better of
-    the two fits best of the additions, and the second-order form fits all runs clearly better than the first-order
+    """``found`` (a pair search: the additions, then ``first`` alone) where both a delay and a spool were added and
+    the better of the two fits best of the additions: with the spool on top fitted again as a first-order lag from its
+    line of starts (:func:`grader.gap.spool.lag_line`) where that fits better, and as a second-order spool
+    (:func:`grader.gap.spool.fit_against_delay`) where that form fits all runs clearly better than the first-order
     lag (its mean square lower by :data:`~grader.gap.verdict.TIE_FIT` of the floor's, the bar of a lookalike),
     scores better held out, and passes the bar of a second effect itself against ``alone`` (the first effect
     alone as :func:`pick_second` scores it): on run A (seed 300), three second-order
@@ -175,6 +176,10 @@ def _second_order_addition(objs: Sequence[RunObjective], base: baseline_mod.Base
     k, j = added.index(spool.SPOOL), added.index(spool.DELAY)
     if min(range(len(added)), key=lambda i: found.states[i].cost) not in (k, j):
         return found
+    line = spool.lag_line(objs, base.params, found.states[j], found.states[k], head=first.theta, executor=executor)
+    if line.states[0].cost < found.states[k].cost:  # the lag on top from its line of starts, where that fits better
+        found = replace(found, states=[*found.states[:k], line.states[0], *found.states[k + 1:]],
+                        cvs=[*found.cvs[:k], line.cvs[0], *found.cvs[k + 1:]])
     alt = spool.fit_against_delay(objs, base.params, found.states[j], found.states[k], head=first.theta,
                                   executor=executor)
     new, old = scored_of(alt)[0], scored_of(found)[k]

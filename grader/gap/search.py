@@ -30,6 +30,7 @@ from grader.gap.backend import Backend
 from grader.gap.candidates import NONE, WEAK_STRENGTH, Candidate, combine
 from grader.gap.crossval import CrossValidation, cross_validate
 from grader.gap.fit import BatchFitter, FitState, grid_starts
+from grader.gap.lm import sumsq
 from grader.gap.objective import RunObjective
 from grader.model.params import RigParams
 
@@ -43,6 +44,8 @@ CLIFF = 10.0
 CLIFF_LINE = tuple(round(0.01 * i, 2) for i in range(-20, 21))
 #: Levenberg–Marquardt rounds of the fits that free the valve's null from their optima without it (:func:`search`).
 NULL_ROUNDS = 4
+#: Starts :func:`screened` fits, of those it evaluates.
+SCREEN_KEEP = 3
 
 
 @dataclass(frozen=True)
@@ -170,6 +173,21 @@ def refit(objectives: Sequence[RunObjective], base: RigParams, start: FitState, 
     full = _fitter(objectives, base, None, executor)
     end = full.fit(full.rebase([replace(start, jac=None, done=False, n_free=None)]), rounds=FULL_ROUNDS)
     return SearchResult(end, cross_validate(full, end), full.lengths)
+
+
+def screened(objectives: Sequence[RunObjective], base: RigParams, starts: Sequence[FitState], *,
+             executor: Executor | None = None, keep: int = SCREEN_KEEP) -> SearchResult:
+    """``starts`` (one candidate's θs) evaluated once on the runs' first :data:`FIRST_WINDOW` seconds; the ``keep``
+    best fitted there and then on the whole runs, as :func:`search_from` fits its profile's ends; the best end,
+    cross-validated."""
+    middle, full = (_fitter(objectives, base, w, executor) for w in (FIRST_WINDOW, None))
+    every = tuple(range(len(objectives)))
+    res = middle.residuals([(s.candidate, s.theta, every) for s in starts])
+    order = sorted(range(len(starts)), key=lambda k: (sumsq(res[k]), k))[:keep]
+    picked = [FitState(starts[k].candidate, every, starts[k].theta, res[k]) for k in order]
+    states = middle.fit(middle.rebase(picked), rounds=FIRST_ROUNDS, final_jacobian=False)
+    best = min(full.fit(full.rebase(states), rounds=FULL_ROUNDS), key=lambda s: s.cost)
+    return SearchResult([best], cross_validate(full, [best]), full.lengths)
 
 
 def second_effect(objectives: Sequence[RunObjective], base: RigParams, first: FitState, others: Sequence[Candidate], *,
