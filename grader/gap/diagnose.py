@@ -123,12 +123,19 @@ def _second_order_spool(objs: Sequence[RunObjective], base: baseline_mod.Baselin
     if s_alt.fit_ms < scored[k].fit_ms:
         found, scored, built, rk = _replaced(found, scored, built, rk.verdict, alt, s_alt, noise_nrmse, before, objs,
                                              base)
+    rk, note = _too_fast(found, rk, k)
+    return found, scored, built, rk, (lag, alt), note
+
+
+def _too_fast(found: SearchResult, rk: Ranking, k: int) -> tuple[Ranking, str | None]:
+    """``rk`` without the spool ``k`` (the search's form of it) among the ties where it is faster than the realistic
+    range's (:data:`~grader.gap.spool.TYPICAL_TAU`) even at the least realistic damping, and the note on it; else
+    ``rk`` and None."""
     form = spool.fitted(found.states[k])
     tau, order, zeta = form["tau"], form["order"], form["zeta"]
     if k not in rk.ties or spool.slowest_tau(tau, order, zeta) >= spool.TYPICAL_TAU[0]:
-        return found, scored, built, rk, (lag, alt), None
-    return (found, scored, built, replace(rk, ties=[i for i in rk.ties if i != k]), (lag, alt),
-            spool.too_fast_note(tau, order, zeta))
+        return rk, None
+    return replace(rk, ties=[i for i in rk.ties if i != k]), spool.too_fast_note(tau, order, zeta)
 
 
 def _replaced(found: SearchResult, scored: list[Scored], built: list[SchemaCandidate], verdict: int,
@@ -156,7 +163,9 @@ def _replayed(objs: Sequence[RunObjective], base: baseline_mod.Baseline,
     and score within :data:`grader.gap.replay.SPAN` of it) compared on the replayed runs (:mod:`grader.gap.replay`),
     a spool in each form fitted: ``forms`` holds the search with its first-order lag and, where it was fitted
     (:func:`_second_order_spool`), the second-order spool alone; where the spool is the verdict or one of its ties
-    and a form other than ``found``'s replays better, its fit becomes the spool's; ``never`` become no lookalikes.
+    and the replay decides, the form that stands for it there (the lag, unless another form replays
+    :data:`~grader.gap.replay.EVIDENCE` better) becomes its fit where it is not ``found``'s; ``never`` become no
+    lookalikes.
     Returns the search, scores, report entries and ranking, the replay and why. With only the form the closed loop
     preferred replayed, an independent simulator's 209 Hz spool of damping 0.61 sampled every 4.6 ms was told apart
     from the delay verdict by 14 as a first-order lag, and by 0.2 in its own form."""
@@ -174,16 +183,19 @@ def _replayed(objs: Sequence[RunObjective], base: baseline_mod.Baseline,
         states += [(k, st) for st, _ in fits[1:]]
     runs = [o.run for o in objs]
     rp = replay.compare(runs, base.params, [s for _, s in states], [i for i, _ in states], sigma, executor=executor)
+    old = rk.verdict
     rk, why = replay.ranking(rk, names, rp, never)
-    shown = k in rp.indices and k in (rk.verdict, *rk.ties)  # the spool named, or listed beside the verdict
-    won = states[rp.form[rp.indices.index(k)]][1] if shown else None  # the spool's better replayed form
-    if won is not None and won is not found.states[k]:  # another form won: its fit
+    shown = rp.decides and k in rp.indices and k in (rk.verdict, *rk.ties)  # the spool named, or listed beside it
+    won = states[rp.form[rp.indices.index(k)]][1] if shown else None  # the form that stands for the spool
+    if won is not None and won is not found.states[k]:  # another form stands: its fit
         moved = rk
         st, cv = next((st, cv) for st, cv in fits if st is won)
         alt = SearchResult([st], [cv], found.lengths)
         found, scored, built, rk = _replaced(found, scored, built, moved.verdict, alt, scored_of(alt)[0], noise_nrmse,
                                              before, objs, base)
-        rk = replace(rk, ties=moved.ties, runner_up=moved.runner_up, margin=moved.margin, confidence=moved.confidence)
+        rk = replace(rk, ties=moved.ties)  # the replay's ties; the closed loop's margin for these scores
+        if moved.verdict != old:  # the replay named it: the closed-loop runs do not (its runner-up, margin 0)
+            rk = replace(rk, runner_up=moved.runner_up, margin=moved.margin, confidence=moved.confidence)
     return found, scored, built, rk, rp, why
 
 
@@ -221,6 +233,8 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
         if names[rk.verdict] != NONE and len(told) > 1 and not why and replay.replayable(runs):
             found, scored, built, rk, rp, why = _replayed(objs, base, forms, found, scored, built, rk, told,
                                                           noise_nrmse, before, sigma, executor, never)
+            if names[rk.verdict] == spool.DELAY and spool.SPOOL in names and not never:  # the form the replay
+                rk, fast = _too_fast(found, rk, names.index(spool.SPOOL))  # kept may be too fast for a valve
         extra, alone = None, True
         if names[rk.verdict] != NONE and second is not False:
             first = found.states[rk.verdict]

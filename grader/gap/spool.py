@@ -171,16 +171,14 @@ def matched(c: Candidate, base: RigParams, theta: Array, ref: Point) -> Array:
     β/Vt; started from the reference's, fits of a second-order spool stayed at optima 85 and 10 times worse than the
     truth's on two of run A's pairs (0282, 0288), whose Kce is 1.9 and 2.9 times lower. The loop is the plant
     b0/(s(s² + a2·s + a1)), :func:`~grader.model.linear.plant_coeffs`, with its lags (:func:`_lag`); the plant's
-    coefficients at the crossover ω come in closed form (the result kept within ``c``'s bounds). ``theta`` unchanged
-    where ``ref``'s loop has no crossover below the Nyquist frequency, or no positive β/Vt and Kce give ``c``'s
-    loop that crossover."""
-    cross = _crossover(ref)
-    if cross is None:
-        return theta
-    w, m_ref = cross
+    coefficients at the crossover ω come in closed form (the result kept within ``c``'s bounds, where a clipped
+    coordinate no longer matches). ``theta`` as given where no positive β/Vt and Kce give ``c``'s loop that
+    crossover (its own lags there reach 90°)."""
+    w, m_ref = _crossover(ref)
     T = ref.params.sample_time
-    new = c.point(base, theta).params
-    lag, gain = _lag(c.point(base, theta).effects, w, T)
+    point = c.point(base, theta)
+    new = point.params
+    lag, gain = _lag(point.effects, w, T)
     phi = math.pi / 2.0 - lag  # the plant's own phase lag beyond the integrator's, at w
     if not 0.0 < phi < math.pi:
         return theta
@@ -200,9 +198,10 @@ def matched(c: Candidate, base: RigParams, theta: Array, ref: Point) -> Array:
     return np.clip(out, lo, hi)
 
 
-def _crossover(ref: Point) -> tuple[float, float] | None:
-    """(ω [rad/s] where the linear loop of ``ref`` crosses −180°, its plant's gain there with the lags [in/mA per
-    s]), or None where it does not below the Nyquist frequency."""
+def _crossover(ref: Point) -> tuple[float, float]:
+    """(ω [rad/s] where the linear loop of ``ref`` crosses −180°, its plant's gain there with the lags [in/mA]). The
+    phase lag beyond the integrator's rises with ω from 0 (a2 > 0) and the hold's half sample alone brings 90° at
+    the Nyquist frequency π/T, so the crossover lies below it, once."""
     p = ref.params
     T = p.sample_time
     a2, a1, b0 = plant_coeffs(p)
@@ -211,8 +210,6 @@ def _crossover(ref: Point) -> tuple[float, float] | None:
         return math.atan2(a2 * w, a1 - w * w) + _lag(ref.effects, w, T)[0] - math.pi / 2.0
 
     top = math.pi / T
-    if excess(top) <= 0.0:
-        return None
     w = float(brentq(excess, 1e-6 * top, top))
     return w, b0 * _lag(ref.effects, w, T)[1] / (w * math.hypot(a1 - w * w, a2 * w))
 

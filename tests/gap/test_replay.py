@@ -228,6 +228,7 @@ def test_a_second_effect_is_chosen_on_the_replayed_runs(tmp_path: Path) -> None:
     assert label == "coulomb_friction+valve_dynamics"
     d = analyse(folder).diagnosis
     assert (d.verdict.effect, d.verdict.second_effect) == ("coulomb_friction", "valve_dynamics")
+    assert "adding valve_dynamics on top explains clearly more" in d.verdict.explanation  # the closed loop's pick
     second = next(r for r in d.replay if r.of == "second_effect")
     assert second.decides and second.excess["valve_dynamics"] == 0.0
     assert second.excess["sampling_delay"] > 50 * EVIDENCE

@@ -137,7 +137,7 @@ def test_a_second_order_spool_that_fits_worse_than_the_lag_changes_nothing(monke
     base = SimpleNamespace(params=load_station("default").params())
     out = diagnose._second_order_spool([], base, found, scored, built, rk, NOISE, cv, None)  # type: ignore[arg-type]
     assert out[0] is found and out[1] is scored and out[2] is built and out[3] is rk
-    assert out[4][0] is found and out[4][1].states == [worse]  # the spool's forms, for the replay
+    assert out[4][0] is found and out[4][1].states[0] is worse  # the spool's forms, for the replay
 
 
 def test_a_kept_none_verdict_that_an_effect_beats_has_no_negative_margin() -> None:
@@ -240,23 +240,28 @@ def _margins(point: Point, kamp_kfb: float) -> tuple[float, float]:
     return float(gm), float(wpc)
 
 
-@pytest.mark.parametrize(("delay", "tau", "zeta"), [(0.002, 0.002, 0.7), (0.004, 0.0047, 0.81), (0.001, 0.0008, 0.5),
-                                                    (0.003, 0.004, 1.0)])
-def test_matched_linear_coordinates_keep_the_reference_loops_critical_gain_and_oscillation(delay: float, tau: float,
-                                                                                            zeta: float) -> None:
-    """A second-order spool's start, its β/Vt and Kce matched to a delay's fit, has the delay model's critical gain
-    and oscillation frequency (cross-checked through python-control's margins), which the instability run pins; its
-    Kq is the reference's."""
-    base = load_station("default").params()
+@pytest.mark.parametrize(("delay", "tau", "zeta", "B"), [(0.002, 0.002, 0.7, 0.0), (0.004, 0.0047, 0.81, 0.0),
+                                                         (0.001, 0.0008, 0.5, 0.0), (0.003, 0.004, 1.0, 0.0),
+                                                         (0.002, 0.002, None, 0.0), (0.003, 0.0047, 0.81, 0.5),
+                                                         (0.002, 0.0025, None, 3.0)])
+def test_matched_linear_coordinates_keep_the_reference_loops_critical_gain_and_oscillation(
+        delay: float, tau: float, zeta: float | None, B: float) -> None:
+    """A spool's start (second order, or with ``zeta`` None a first-order lag), its β/Vt and Kce matched to a delay's
+    fit, has the delay model's critical gain and oscillation frequency (cross-checked through python-control's
+    margins), which the instability run pins, with viscous friction B [lbf·s/in] in the rig too; its Kq is the
+    reference's."""
+    base = load_station("default").params().with_(B=B)
     cands = _candidates()
     ref = cands["sampling_delay"].point(base, np.array([0.1, -0.3, 0.02, delay / 0.003]))
-    c = spool.second_order(cands["valve_dynamics"])
-    theta = np.array([0.1, -0.3, 0.02, tau / 0.005, zeta])
+    c = cands["valve_dynamics"] if zeta is None else spool.second_order(cands["valve_dynamics"])
+    theta = np.array([0.1, -0.3, 0.02, tau / 0.005, *([] if zeta is None else [zeta])])
     out = spool.matched(c, base, theta, ref)
     assert out[2] == theta[2] and list(out[3:]) == list(theta[3:])
     assert abs(out[1] - theta[1]) > 0.01  # a spool is not a delay: Kce moves
     new = c.point(base, out)
-    assert new.effects.values["valve_dynamics"] == {"tau": pytest.approx(tau), "order": 2.0, "zeta": zeta}
+    form = {"tau": pytest.approx(tau), "order": 2.0, "zeta": zeta} if zeta else {"tau": pytest.approx(tau),
+                                                                                  "order": 1.0, "zeta": 0.7}
+    assert new.effects.values["valve_dynamics"] == form
     k = base.Kamp * base.k_fb
     (gm_ref, w_ref), (gm_new, w_new) = _margins(ref, k), _margins(new, k)
     assert w_new == pytest.approx(w_ref, rel=1e-3)
@@ -265,8 +270,8 @@ def test_matched_linear_coordinates_keep_the_reference_loops_critical_gain_and_o
 
 def test_a_first_order_lag_the_search_misplaces_is_fitted_again_from_its_matched_line(tmp_path: Path) -> None:
     """A 3.8 ms first-order lag on a rig like an independent simulator's (Kce 5.9e-4 in³/s/psi, β/Vt 49,600 psi/in³,
-    sampled at 1.43 ms, noise 0.8 mil): the search put it at 1.1 ms (95 % interval 0.1 to 6.7 ms) with twice the
-    truth's Kce. Fitted again from its line of starts, their β/Vt and Kce matched to the delay's loop, it has the
+    sampled at 1.43 ms, noise 0.8 mil), built here by this project's generator: the search put it at 1.1 ms (95 %
+    interval 0.1 to 6.7 ms) with twice the truth's Kce (on the independent simulator's own rig, at 0.1 ms). Fitted again from its line of starts, their β/Vt and Kce matched to the delay's loop, it has the
     truth's τ and Kce."""
     base = load_station("default")
     truth = {**base.truth, "Kq": "0.03862 in^3/s/mA", "Kpot": "2.2507 V/in", "beta_over_Vt": "49602 psi/in^3",
