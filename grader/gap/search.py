@@ -161,6 +161,12 @@ def search_from(objectives: Sequence[RunObjective], base: RigParams, candidate: 
     coordinates, off the cliff, from ``none`` or a nesting optimum); the best end, cross-validated."""
     short, middle, full = (_fitter(objectives, base, w, executor) for w in (PROFILE_WINDOW, FIRST_WINDOW, None))
     states = short.profile([(candidate, np.asarray(s, dtype=float)) for s in starts], owner, rounds=PROFILE_ROUNDS)
+    return _onward(middle, full, states)
+
+
+def _onward(middle: BatchFitter, full: BatchFitter, states: Sequence[FitState]) -> SearchResult:
+    """``states`` fitted on the ``middle`` fitter's window, then on the whole runs (``full``); the best end,
+    cross-validated."""
     states = middle.fit(middle.rebase(states), rounds=FIRST_ROUNDS, final_jacobian=False)
     best = min(full.fit(full.rebase(states), rounds=FULL_ROUNDS), key=lambda s: s.cost)
     return SearchResult([best], cross_validate(full, [best]), full.lengths)
@@ -184,10 +190,7 @@ def screened(objectives: Sequence[RunObjective], base: RigParams, starts: Sequen
     every = tuple(range(len(objectives)))
     res = middle.residuals([(s.candidate, s.theta, every) for s in starts])
     order = sorted(range(len(starts)), key=lambda k: (sumsq(res[k]), k))[:keep]
-    picked = [FitState(starts[k].candidate, every, starts[k].theta, res[k]) for k in order]
-    states = middle.fit(middle.rebase(picked), rounds=FIRST_ROUNDS, final_jacobian=False)
-    best = min(full.fit(full.rebase(states), rounds=FULL_ROUNDS), key=lambda s: s.cost)
-    return SearchResult([best], cross_validate(full, [best]), full.lengths)
+    return _onward(middle, full, [FitState(starts[k].candidate, every, starts[k].theta, res[k]) for k in order])
 
 
 def second_effect(objectives: Sequence[RunObjective], base: RigParams, first: FitState, others: Sequence[Candidate], *,
