@@ -28,7 +28,8 @@ from grader.gap.candidates import LEAST_LIMIT, NONE, NOT_FROM_RUNS, Candidate, m
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.objective import RunObjective, objective
-from grader.gap.pairs import NONE_GAP, Second, beyond_none, fit_nrmse, pick_second, replay_drops, scored_of
+from grader.gap.pairs import (NONE_GAP, Second, beyond_none, fit_nrmse, pick_second, replay_drops, scored_of,
+                              untied)
 from grader.gap.runs import (GapRun, check_gains, current_demand, cut_note, gain_notes, prepare_runs,
                              start_offset_note)
 from grader.gap.schema import Candidate as SchemaCandidate
@@ -281,8 +282,8 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
                                             "it is not named") if w)
                 extra, why2 = None, ""
                 replays = [*(r for r in replays if r.of != "second_effect"), dropped]
-    if extra is not None:  # a lookalike of the verdict that is named on top of it is no longer a doubt
-        rk = replace(rk, ties=[i for i in rk.ties if names[i] != extra.state.candidate.names[-1]])
+        if extra is not None and rk.ties:  # the verdict's lookalikes beside the pair (beyond none: it has none)
+            rk = replace(rk, ties=untied(objs, base, found, rk.verdict, rk.ties, extra, floor, executor))
     cands = [built[i] for i in rk.order]
     aug, entry = found.states[rk.verdict], built[rk.verdict]
     verdict = _verdict(rk, names)

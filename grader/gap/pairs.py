@@ -29,7 +29,7 @@ from grader.gap.schema import Candidate as SchemaCandidate
 from grader.gap.schema import ReplayInfo
 from grader.gap.search import SearchResult, refit, second_effect
 from grader.gap.spread import spread
-from grader.gap.verdict import TIE_FIT, Ranking, Scored, decide, explaining, fit_gain, lookalikes, scores
+from grader.gap.verdict import TIE, TIE_FIT, Ranking, Scored, decide, explaining, fit_gain, lookalikes, scores
 from grader.model.effects import EFFECTS
 from grader.model.params import RigParams
 
@@ -250,6 +250,35 @@ def _replayed_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, 
     names = [s.candidate.names[-1] for s in pool]
     return Second(pick[2], pick[3], pick[1], alike, (), replay.info(rp, [*names, NONE], "second_effect"),
                   min(max(share, 0.0), 1.0))
+
+
+def untied(objs: Sequence[RunObjective], base: baseline_mod.Baseline, found: SearchResult, verdict: int,
+           ties: Sequence[int], extra: Second, floor_nrmse: Array, executor: Executor | None) -> list[int]:
+    """The verdict's ties (indices into ``found``, the single-effect search) that stay its lookalikes once ``extra``
+    is named on top of it: not the effect named on top, and, put in the verdict's place with the same addition on
+    top (searched as the pair was, :func:`grader.gap.search.second_effect`), a pair the data cannot tell from the
+    named one by the rule of a lookalike (:func:`grader.gap.verdict.lookalikes`: within TIE held out, or within
+    TIE_FIT of the floor ``floor_nrmse`` leaves in all-runs mean square). Alone, a tie may have stood in for part of
+    the second effect's share of the gap rather than for the verdict: an independent simulator's deadband with a
+    current limit on top kept a spool lag from the single-effect ranking which, with the limit on top, fitted all
+    runs 48 times worse and scored 11 times worse held out; run A's (seed 300) 0277, the same pair, kept Coulomb
+    friction, 317 and 30 times worse. A deadband with a delay on top keeps Coulomb friction, which fits all runs 8 %
+    better in its place."""
+    pair, added = extra.state.candidate, extra.state.candidate.names[-1]
+    first = found.states[verdict].candidate
+    second = Candidate(added, pair.params[len(first.params):], {k: v for k, v in pair.fixed.items() if k == added},
+                       (added,))
+    named = extra.scored
+    floor = TIE_FIT * float(np.mean(floor_nrmse**2))
+    kept = []
+    for i in ties:
+        if found.states[i].candidate.names[-1] == added:
+            continue
+        alt = scored_of(second_effect(objs, base.params, found.states[i], [second], executor=executor))[0]
+        s = scores([named, alt])
+        if np.log(s[1] / s[0]) < TIE or alt.fit_ms - named.fit_ms < floor:
+            kept.append(i)
+    return kept
 
 
 def names_addition(rp: replay.Replay, k: int, n: int, strength: float) -> bool:

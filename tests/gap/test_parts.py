@@ -261,3 +261,43 @@ def test_an_interval_is_at_least_its_model_form_floor(monkeypatch: pytest.Monkey
     v = entry.params[name]
     half = stats.t.ppf(0.975, 5) * floor * v.value
     assert v.interval == pytest.approx((v.value - half, v.value + half), rel=1e-5)
+
+
+@pytest.mark.parametrize(("heldout", "fit", "kept"), [
+    (0.0204, 0.05, True),    # scores within TIE of the named pair held out: a lookalike
+    (0.03, 0.0205, True),    # fits all runs within TIE_FIT of the floor's mean square: a lookalike
+    (0.03, 0.021, False),    # worse both ways: told apart
+    (0.019, 0.019, True),    # better in the verdict's place: still a doubt
+])
+def test_a_tie_of_the_verdict_stays_its_lookalike_beside_a_pair_only_where_it_fits_as_well_in_its_place(
+        monkeypatch: pytest.MonkeyPatch, heldout: float, fit: float, kept: bool) -> None:
+    """A tie of the verdict alone is put in its place with the same addition on top (searched from the tie's own
+    optimum, the addition in the form named: here a second-order spool) and kept by the rule of a lookalike; the
+    effect named on top is no doubt of the verdict, and is not fitted again."""
+    import grader.gap.pairs as diag
+    from grader.gap import spool
+    from grader.gap.baseline import Baseline
+    from grader.gap.search import SearchResult
+
+    base = load_station("default").params()
+    cands = {c.effect: c for c in make_candidates(base, ["valve_saturation", "coulomb_friction", "valve_dynamics"])}
+    lin = np.zeros(3)
+    states = [FitState(cands[e], tuple(range(6)), np.append(lin, 0.3), np.full(6, 0.02))
+              for e in ("valve_saturation", "coulomb_friction", "valve_dynamics")]
+    found = SearchResult(states, [], [1] * 6)
+    pair = spool.second_order(combine(cands["valve_saturation"], cands["valve_dynamics"]))
+    named = Scored(pair.effect, np.full(6, 0.02), np.full(6, 0.02), 3, 0.5)
+    extra = diag.Second(FitState(pair, tuple(range(6)), np.append(lin, [0.3, 0.4, 0.7]), np.full(6, 0.02)),
+                        None, named, ())  # type: ignore[arg-type]
+    searched: list[tuple[str, list[str], dict]] = []
+
+    def second_effect(objs, base, first, others, executor=None):  # type: ignore[no-untyped-def]
+        searched.append((first.candidate.effect, [p.name for p in others[0].params], dict(others[0].fixed)))
+        return "searched"
+
+    monkeypatch.setattr(diag, "second_effect", second_effect)
+    monkeypatch.setattr(diag, "scored_of", lambda found: [Scored("coulomb_friction+valve_dynamics",
+                                                                 np.full(6, heldout), np.full(6, fit), 3, 0.5)])
+    out = diag.untied([], Baseline(base, "test", "constructed"), found, 0, [1, 2], extra, np.full(6, 0.01), None)
+    assert out == ([1] if kept else [])
+    assert searched == [("coulomb_friction", ["tau", "zeta"], {"valve_dynamics": {"order": 2.0}})]

@@ -292,6 +292,19 @@ def test_a_weak_second_effect_is_named_once_it_fits_clearly_better(tmp_path: Pat
     assert (d.verdict.effect, d.verdict.second_effect) == ("valve_hysteresis", "sampling_delay")
 
 
+def test_a_lookalike_of_the_verdict_alone_is_dropped_where_the_pair_tells_it_apart(tmp_path: Path) -> None:
+    """Benchmark case 277 of seed 300 (a 0.67 mA deadband with a 20 mA current limit): alone, the current limit,
+    Coulomb friction and the deadband fit alike, and the current limit is the verdict with the deadband on top. In
+    the current limit's place, with the deadband on top, Coulomb friction fits all runs hundreds of times worse, so
+    it is no lookalike of the pair's first effect (it was listed, and the dataset scored a miss); the deadband,
+    named on top, is none either."""
+    label, d = _seed_300_case(277, tmp_path)
+    assert set(label.split("+")) == {"valve_deadband", "valve_saturation"}
+    assert (d.verdict.effect, d.verdict.second_effect) == ("valve_saturation", "valve_deadband")
+    assert d.verdict.indistinguishable_from == [] and d.verdict.second_indistinguishable_from == []
+    assert "coulomb_friction" not in d.verdict.explanation
+
+
 def test_a_fit_that_falls_off_the_instability_runs_cliff_starts_again_from_a_line_in_kce(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, without_u: Callable[[Path], Path]) -> None:
     """Benchmark case 192 of seed 300 (Coulomb friction of 1.3 lbf): the Coulomb fit matches the runs' first half
