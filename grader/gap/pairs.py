@@ -115,6 +115,7 @@ def pick_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first
     found = second_effect(objs, base.params, first, others, executor=executor,
                           keep=lambda ends, lengths: could_pass(ends, lengths, floor_nrmse, first_scored))
     reference = min(scored_of(found)[-1], first_scored, key=lambda c: scores([c])[0])
+    found = _lag_from_line(objs, base, first, found, floor_nrmse, reference, [o.effect for o in others], executor)
     found = _second_order_addition(objs, base, first, found, floor_nrmse, reference, executor)
     scored = scored_of(found)
     if scores([first_scored])[0] < scores([scored[-1]])[0]:
@@ -153,35 +154,64 @@ def pick_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first
                   tuple(entry(i) for i in rivals)), better
 
 
-def _second_order_addition(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState,
-                           found: SearchResult, floor_nrmse: Array, alone: Scored,
-                           executor: Executor | None) -> SearchResult:
-    """``found`` (a pair search: the additions, then ``first`` alone) where both a delay and a spool were added and
-    the better of the two fits best of the additions: with the spool on top fitted again as a first-order lag from its
-    line of starts (:func:`grader.gap.spool.lag_line`) where that fits better, and as a second-order spool
-    (:func:`grader.gap.spool.fit_against_delay`) where that form fits all runs clearly better than the first-order
-    lag (its mean square lower by :data:`~grader.gap.verdict.TIE_FIT` of the floor's, the bar of a lookalike),
-    scores better held out, and passes the bar of a second effect itself against ``alone`` (the first effect
-    alone as :func:`pick_second` scores it): on run A (seed 300), three second-order
-    spools on top of a current limit or a backlash were named as a delay on top. Without the first condition, a
-    first-order lag on top of a backlash took the second-order form by 4 % of its mean square, and a delay on top of
-    a current limit became a spool's lookalike and lost its name; without the second, a 4.5 ms lag on top of a
-    backlash took a second-order form that fitted all runs 3 times better and predicted the left-out runs 8 times
-    worse; without the third, a 3.8 ms lag on top of a backlash, which no addition passes the bar for and the
-    replayed runs name, was replayed in a second-order form, which they did not bear out. In each, no second effect
-    was named."""
-    added = [s.candidate.names[-1] for s in found.states[:-1]]
+def _lag_from_line(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, found: SearchResult,
+                   floor_nrmse: Array, alone: Scored, order: Sequence[str], executor: Executor | None) -> SearchResult:
+    """``found`` (a pair search: the kept additions, then ``first`` alone; the others in ``found.dropped``) with the
+    first-order lag on top fitted again from its line of starts (:func:`grader.gap.spool.lag_line`, beside the delay
+    on top), where that fits better: where the delay or the lag is the best kept addition, or where the lag ended
+    worse than ``first`` alone, which it nests but for its least time constant, 0.1 ms. Kept where the refit could
+    pass the bar (:func:`could_pass`, against ``alone``), in candidate ``order``; else left out, as a better start for
+    the replay. Run A's 0254, a 4 ms spool with 7 lbf of Coulomb friction: searched from the friction's optimum,
+    the lag on top ended 1.7 times worse than the friction alone and was left out, and a current limit was named on
+    top; from its line, it ends 3.5 times better than the friction alone, better than any other addition."""
+    pool = [*found.states[:-1], *found.dropped]
+    added = [s.candidate.names[-1] for s in pool]
     if spool.DELAY not in added or spool.SPOOL not in added:
         return found
     k, j = added.index(spool.SPOOL), added.index(spool.DELAY)
-    if min(range(len(added)), key=lambda i: found.states[i].cost) not in (k, j):
+    kept = len(found.states) - 1
+    best = min(range(kept), key=lambda i: pool[i].cost, default=-1)
+    if best not in (k, j) and pool[k].cost <= found.states[-1].cost:
         return found
-    line = spool.lag_line(objs, base.params, found.states[j], found.states[k], head=first.theta, executor=executor)
-    if line.states[0].cost < found.states[k].cost:  # the lag on top from its line of starts, where that fits better
-        found = replace(found, states=[*found.states[:k], line.states[0], *found.states[k + 1:]],
-                        cvs=[*found.cvs[:k], line.cvs[0], *found.cvs[k + 1:]])
-    alt = spool.fit_against_delay(objs, base.params, found.states[j], found.states[k], head=first.theta,
-                                  executor=executor)
+    line = spool.lag_line(objs, base.params, pool[j], pool[k], head=first.theta, executor=executor)
+    if line.states[0].cost >= pool[k].cost:
+        return found
+    if k < kept:  # kept: its fit and cross-validation replaced
+        return replace(found, states=[*found.states[:k], line.states[0], *found.states[k + 1:]],
+                       cvs=[*found.cvs[:k], line.cvs[0], *found.cvs[k + 1:]])
+    dropped = [d for d in found.dropped if d is not pool[k]]
+    if not could_pass([line.states[0], found.states[-1]], found.lengths, floor_nrmse, alone)[0]:
+        return replace(found, dropped=[*dropped[:k - kept], line.states[0], *dropped[k - kept:]])
+    at = sum(order.index(s.candidate.names[-1]) < order.index(spool.SPOOL) for s in found.states[:-1])
+    return replace(found, states=[*found.states[:at], line.states[0], *found.states[at:]],
+                   cvs=[*found.cvs[:at], line.cvs[0], *found.cvs[at:]], dropped=dropped)
+
+
+def _second_order_addition(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState,
+                           found: SearchResult, floor_nrmse: Array, alone: Scored,
+                           executor: Executor | None) -> SearchResult:
+    """``found`` (a pair search: the kept additions, then ``first`` alone; the others in ``found.dropped``) where a
+    delay and a spool were added (the spool kept) and one of the two fits best of the kept additions: with the spool
+    on top fitted again as a second-order spool (:func:`grader.gap.spool.fit_against_delay`) where that form fits all
+    runs clearly better than the first-order lag (its mean square lower by :data:`~grader.gap.verdict.TIE_FIT` of
+    the floor's, the bar of a lookalike), scores better held out, and passes the bar of a second effect itself
+    against ``alone`` (the first effect alone as :func:`pick_second` scores it): on run A (seed 300), three
+    second-order spools on top of a current limit or a backlash were named as a delay on top. Without the first
+    condition, a first-order lag on top of a backlash took the second-order form by 4 % of its mean square, and a
+    delay on top of a current limit became a spool's lookalike and lost its name; without the second, a 4.5 ms lag
+    on top of a backlash took a second-order form that fitted all runs 3 times better and predicted the left-out
+    runs 8 times worse; without the third, a 3.8 ms lag on top of a backlash, which no addition passes the bar for
+    and the replayed runs name, was replayed in a second-order form, which they did not bear out. In each, no
+    second effect was named."""
+    pool = [*found.states[:-1], *found.dropped]
+    added = [s.candidate.names[-1] for s in pool]
+    kept = len(found.states) - 1
+    if spool.DELAY not in added or spool.SPOOL not in added[:kept]:
+        return found
+    k, j = added.index(spool.SPOOL), added.index(spool.DELAY)
+    if min(range(kept), key=lambda i: pool[i].cost) not in (k, j):
+        return found
+    alt = spool.fit_against_delay(objs, base.params, pool[j], pool[k], head=first.theta, executor=executor)
     new, old = scored_of(alt)[0], scored_of(found)[k]
     held = scores([new, old])
     passes = decide([new, alone], floor_nrmse, reference=1, gain=SECOND_GAIN, rel_gain=SECOND_REL_GAIN)[0] == 0

@@ -301,3 +301,59 @@ def test_a_tie_of_the_verdict_stays_its_lookalike_beside_a_pair_only_where_it_fi
     out = diag.untied([], Baseline(base, "test", "constructed"), found, 0, [1, 2], extra, np.full(6, 0.01), None)
     assert out == ([1] if kept else [])
     assert searched == [("coulomb_friction", ["tau", "zeta"], {"valve_dynamics": {"order": 2.0}})]
+
+
+@pytest.mark.parametrize(("spool_r", "kept", "line_r", "expect"), [
+    (0.12, False, 0.05, "kept"),       # ended worse than the first alone; from its line it could pass the bar
+    (0.12, False, 0.0998, "dropped"),  # better from its line, but it cannot pass the bar: left out, a better start
+    (0.12, False, 0.13, "as is"),      # no better from its line
+    (0.1, False, 0.05, "not tried"),   # nests the first alone and another addition fits best: no line
+    (0.085, True, 0.05, "replaced"),   # the best kept addition: refitted in its place
+])
+def test_a_lag_on_top_that_ended_at_a_poor_optimum_is_fitted_again_from_its_line(
+        monkeypatch: pytest.MonkeyPatch, spool_r: float, kept: bool, line_r: float, expect: str) -> None:
+    """In a pair search (per-run residuals of the first alone 0.1, a delay on top 0.095 and a current limit 0.09,
+    both kept), the lag on top is fitted again from its line of starts where it ended worse than the first alone or
+    fits best of the kept additions, and stands where that fits better: kept, in candidate order, where it could
+    now pass the bar (:func:`could_pass`), else left out."""
+    import grader.gap.pairs as diag
+    from grader.gap.baseline import Baseline
+    from grader.gap.crossval import CrossValidation
+    from grader.gap.search import SearchResult
+
+    base = load_station("default").params()
+    c = {x.effect: x for x in make_candidates(base, ["coulomb_friction", "sampling_delay", "valve_saturation",
+                                                       "valve_dynamics"])}
+    first = c["coulomb_friction"]
+
+    def state(effect: str | None, r: float) -> FitState:
+        cand = first if effect is None else combine(first, c[effect])
+        return FitState(cand, tuple(range(6)), np.zeros(cand.n_theta), np.full(6, r))
+
+    cv = CrossValidation(np.full(6, 0.1), np.zeros((6, 5)))
+    lag = state("valve_dynamics", spool_r)
+    states = [state("sampling_delay", 0.095), *([lag] if kept else []), state("valve_saturation", 0.09),
+              state(None, 0.1)]
+    found = SearchResult(states, [cv] * len(states), [1] * 6, [] if kept else [lag])
+    line = state("valve_dynamics", line_r)
+    line_cv = CrossValidation(np.full(6, 0.05), np.zeros((6, 5)))
+    calls: list[int] = []
+
+    def lag_line(objs, base, delay, on_top, head=None, executor=None):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        assert delay is states[0] and on_top is lag
+        return SearchResult([line], [line_cv], [1] * 6)
+
+    monkeypatch.setattr(diag.spool, "lag_line", lag_line)
+    alone = Scored("coulomb_friction", np.full(6, 0.1), np.full(6, 0.1), 1, 0.5)
+    order = ["sampling_delay", "valve_dynamics", "valve_saturation"]
+    out = diag._lag_from_line([], Baseline(base, "test", "constructed"), state(None, 0.1), found, np.full(6, 0.02),
+                              alone, order, None)
+    assert calls == ([] if expect == "not tried" else [1])
+    names = [s.candidate.names[-1] for s in out.states]
+    if expect in ("kept", "replaced"):
+        assert names == ["sampling_delay", "valve_dynamics", "valve_saturation", "coulomb_friction"]
+        assert out.states[1] is line and out.cvs[1] is line_cv and out.dropped == []
+    else:
+        assert names == ["sampling_delay", "valve_saturation", "coulomb_friction"]
+        assert out.dropped == [line if expect == "dropped" else lag]

@@ -305,6 +305,17 @@ def test_a_lookalike_of_the_verdict_alone_is_dropped_where_the_pair_tells_it_apa
     assert "coulomb_friction" not in d.verdict.explanation
 
 
+def test_a_slow_lag_on_top_of_a_deadband_is_named_once_fitted_from_its_line(tmp_path: Path) -> None:
+    """Benchmark case 299 of seed 300 (a 4.2 ms lag with a 2.3 mA deadband): searched from the deadband's optimum,
+    the lag on top ended worse than the deadband alone and was left out, a current limit fitted best of the
+    additions, and the deadband was named alone, beside Coulomb friction. Fitted again from its line of
+    starts, the lag on top is the second effect, and Coulomb friction in the deadband's place is no lookalike."""
+    label, d = _seed_300_case(299, tmp_path)
+    assert set(label.split("+")) == {"valve_deadband", "valve_dynamics"}
+    assert (d.verdict.effect, d.verdict.second_effect) == ("valve_deadband", "valve_dynamics")
+    assert d.verdict.indistinguishable_from == [] and d.verdict.second_indistinguishable_from == []
+
+
 def test_a_fit_that_falls_off_the_instability_runs_cliff_starts_again_from_a_line_in_kce(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, without_u: Callable[[Path], Path]) -> None:
     """Benchmark case 192 of seed 300 (Coulomb friction of 1.3 lbf): the Coulomb fit matches the runs' first half
