@@ -28,8 +28,8 @@ from grader.gap.candidates import LEAST_LIMIT, NONE, NOT_FROM_RUNS, Candidate, m
 from grader.gap.crossval import CrossValidation
 from grader.gap.fit import FitState
 from grader.gap.objective import RunObjective, objective
-from grader.gap.pairs import (NONE_GAP, Second, beyond_none, fit_nrmse, pick_second, replay_drops, scored_of,
-                              untied)
+from grader.gap.pair_ties import untied
+from grader.gap.pairs import NONE_GAP, Second, beyond_none, fit_nrmse, pick_second, replay_drops, scored_of
 from grader.gap.runs import (GapRun, check_gains, current_demand, cut_note, gain_notes, prepare_runs,
                              start_offset_note)
 from grader.gap.schema import Candidate as SchemaCandidate
@@ -84,8 +84,7 @@ def _verdict(rk: Ranking, names: list[str]) -> Verdict:
     ties = [names[i] for i in rk.ties]
     if v == NONE:
         text = "no candidate effect explains clearly more than the noise"
-    elif any(rk.scores[i] < rk.scores[rk.verdict] for i in [*rk.ties, *([] if rk.runner_up is None else
-                                                                        [rk.runner_up])]):
+    elif any(rk.scores[i] < rk.scores[rk.verdict] for i in [*rk.ties, rk.runner_up] if i is not None):
         # kept over a lookalike (a second-order spool), or chosen over it by its fit or the replayed runs
         text = f"{v} explains the gap as well as any candidate"
     else:
@@ -236,7 +235,7 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
                                                           noise_nrmse, before, sigma, executor, never)
             if names[rk.verdict] == spool.DELAY and spool.SPOOL in names and not never:  # the form the replay
                 rk, fast = _too_fast(found, rk, names.index(spool.SPOOL))  # kept may be too fast for a valve
-        extra, alone = None, True
+        extra, alone, floor = None, True, noise_nrmse  # floor: the verdict's, where it searches a pair
         if names[rk.verdict] != NONE and second is not False:
             first = found.states[rk.verdict]
             floor = np.sqrt(noise_nrmse**2 + spread(objs, first.candidate.point(base.params, first.theta), sigma))
@@ -283,7 +282,8 @@ def _which_effect(objs: Sequence[RunObjective], base: baseline_mod.Baseline, can
                 extra, why2 = None, ""
                 replays = [*(r for r in replays if r.of != "second_effect"), dropped]
         if extra is not None and rk.ties:  # the verdict's lookalikes beside the pair (beyond none: it has none)
-            rk = replace(rk, ties=untied(objs, base, found, rk.verdict, rk.ties, extra, floor, executor))
+            ties, told, beside = untied(objs, base, found, rk.verdict, rk.ties, extra, floor, sigma, executor)
+            rk, replays, why2 = replace(rk, ties=ties), replays + told, "; ".join(w for w in (why2, beside) if w)
     cands = [built[i] for i in rk.order]
     aug, entry = found.states[rk.verdict], built[rk.verdict]
     verdict = _verdict(rk, names)

@@ -29,7 +29,7 @@ from grader.gap.schema import Candidate as SchemaCandidate
 from grader.gap.schema import ReplayInfo
 from grader.gap.search import SearchResult, refit, second_effect
 from grader.gap.spread import spread
-from grader.gap.verdict import TIE, TIE_FIT, Ranking, Scored, decide, explaining, fit_gain, lookalikes, scores
+from grader.gap.verdict import TIE_FIT, Ranking, Scored, decide, explaining, fit_gain, lookalikes, scores
 from grader.model.effects import EFFECTS
 from grader.model.params import RigParams
 
@@ -115,7 +115,7 @@ def pick_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first
     found = second_effect(objs, base.params, first, others, executor=executor,
                           keep=lambda ends, lengths: could_pass(ends, lengths, floor_nrmse, first_scored))
     reference = min(scored_of(found)[-1], first_scored, key=lambda c: scores([c])[0])
-    found = _lag_from_line(objs, base, first, found, floor_nrmse, reference, [o.effect for o in others], executor)
+    found = _lag_from_line(objs, base, first, found, floor_nrmse, first_scored, [o.effect for o in others], executor)
     found = _second_order_addition(objs, base, first, found, floor_nrmse, reference, executor)
     scored = scored_of(found)
     if scores([first_scored])[0] < scores([scored[-1]])[0]:
@@ -155,13 +155,15 @@ def pick_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first
 
 
 def _lag_from_line(objs: Sequence[RunObjective], base: baseline_mod.Baseline, first: FitState, found: SearchResult,
-                   floor_nrmse: Array, alone: Scored, order: Sequence[str], executor: Executor | None) -> SearchResult:
-    """``found`` (a pair search: the kept additions, then ``first`` alone; the others in ``found.dropped``) with the
-    first-order lag on top fitted again from its line of starts (:func:`grader.gap.spool.lag_line`, beside the delay
-    on top), where that fits better: where the delay or the lag is the best kept addition, or where the lag ended
-    worse than ``first`` alone, which it nests but for its least time constant, 0.1 ms. Kept where the refit could
-    pass the bar (:func:`could_pass`, against ``alone``), in candidate ``order``; else left out, as a better start for
-    the replay. Run A's 0254, a 4 ms spool with 7 lbf of Coulomb friction: searched from the friction's optimum,
+                   floor_nrmse: Array, first_scored: Scored, order: Sequence[str],
+                   executor: Executor | None) -> SearchResult:
+    """``found`` (a pair search on top of ``first``, neither a delay nor a spool: the kept additions, then ``first``
+    alone refitted; the others in ``found.dropped``) with the first-order lag on top fitted again from its line of
+    starts (:func:`grader.gap.spool.lag_line`, beside the delay on top), where that fits better: where the delay or
+    the lag is the best kept addition, or where the lag ended worse than ``first`` alone refitted in the same search,
+    which it nests but for its least time constant, 0.1 ms. Kept where the refit could pass the bar
+    (:func:`could_pass`, against that refit and ``first_scored``, as the search kept the others), in candidate
+    ``order``; else left out, as a better start for the replay. Run A's 0254, a 4 ms spool with 7 lbf of Coulomb friction: searched from the friction's optimum,
     the lag on top ended 1.7 times worse than the friction alone and was left out, and a current limit was named on
     top; from its line, it ends 3.5 times better than the friction alone, better than any other addition."""
     pool = [*found.states[:-1], *found.dropped]
@@ -180,7 +182,7 @@ def _lag_from_line(objs: Sequence[RunObjective], base: baseline_mod.Baseline, fi
         return replace(found, states=[*found.states[:k], line.states[0], *found.states[k + 1:]],
                        cvs=[*found.cvs[:k], line.cvs[0], *found.cvs[k + 1:]])
     dropped = [d for d in found.dropped if d is not pool[k]]
-    if not could_pass([line.states[0], found.states[-1]], found.lengths, floor_nrmse, alone)[0]:
+    if not could_pass([line.states[0], found.states[-1]], found.lengths, floor_nrmse, first_scored)[0]:
         return replace(found, dropped=[*dropped[:k - kept], line.states[0], *dropped[k - kept:]])
     at = sum(order.index(s.candidate.names[-1]) < order.index(spool.SPOOL) for s in found.states[:-1])
     return replace(found, states=[*found.states[:at], line.states[0], *found.states[at:]],
@@ -280,35 +282,6 @@ def _replayed_second(objs: Sequence[RunObjective], base: baseline_mod.Baseline, 
     names = [s.candidate.names[-1] for s in pool]
     return Second(pick[2], pick[3], pick[1], alike, (), replay.info(rp, [*names, NONE], "second_effect"),
                   min(max(share, 0.0), 1.0))
-
-
-def untied(objs: Sequence[RunObjective], base: baseline_mod.Baseline, found: SearchResult, verdict: int,
-           ties: Sequence[int], extra: Second, floor_nrmse: Array, executor: Executor | None) -> list[int]:
-    """The verdict's ties (indices into ``found``, the single-effect search) that stay its lookalikes once ``extra``
-    is named on top of it: not the effect named on top, and, put in the verdict's place with the same addition on
-    top (searched as the pair was, :func:`grader.gap.search.second_effect`), a pair the data cannot tell from the
-    named one by the rule of a lookalike (:func:`grader.gap.verdict.lookalikes`: within TIE held out, or within
-    TIE_FIT of the floor ``floor_nrmse`` leaves in all-runs mean square). Alone, a tie may have stood in for part of
-    the second effect's share of the gap rather than for the verdict: an independent simulator's deadband with a
-    current limit on top kept a spool lag from the single-effect ranking which, with the limit on top, fitted all
-    runs 48 times worse and scored 11 times worse held out; run A's (seed 300) 0277, the same pair, kept Coulomb
-    friction, 317 and 30 times worse. A deadband with a delay on top keeps Coulomb friction, which fits all runs 8 %
-    better in its place."""
-    pair, added = extra.state.candidate, extra.state.candidate.names[-1]
-    first = found.states[verdict].candidate
-    second = Candidate(added, pair.params[len(first.params):], {k: v for k, v in pair.fixed.items() if k == added},
-                       (added,))
-    named = extra.scored
-    floor = TIE_FIT * float(np.mean(floor_nrmse**2))
-    kept = []
-    for i in ties:
-        if found.states[i].candidate.names[-1] == added:
-            continue
-        alt = scored_of(second_effect(objs, base.params, found.states[i], [second], executor=executor))[0]
-        s = scores([named, alt])
-        if np.log(s[1] / s[0]) < TIE or alt.fit_ms - named.fit_ms < floor:
-            kept.append(i)
-    return kept
 
 
 def names_addition(rp: replay.Replay, k: int, n: int, strength: float) -> bool:

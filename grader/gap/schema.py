@@ -178,13 +178,15 @@ class ReplayInfo(_Frozen):
     """Effects fitted again to the runs replayed through the controller output the rig recorded (datasets with a
     ``u`` column on every run)."""
 
-    of: Literal["verdict", "second_effect", "dropped_second_effect"] = Field(
+    of: Literal["verdict", "second_effect", "dropped_second_effect", "verdict_with_second_effect"] = Field(
         description="what was replayed: the verdict, the candidates tied with it and the other effects that explain "
                     "clearly more than 'none' and score within a factor e of it; or the second effect, its lookalikes "
                     "and the other additions that pass the bar and score within a factor e of it (each on top of the "
                     "verdict); where no addition passes the bar, every addition fitted and, as 'none', the verdict "
                     "alone; or (dropped_second_effect) a second effect the closed loop's bar named and, as 'none', the "
-                    "verdict alone, where the replay did not bear it out: it is then not named")
+                    "verdict alone, where the replay did not bear it out: it is then not named; or "
+                    "(verdict_with_second_effect) the verdict and the lookalikes it kept beside the pair, each with the "
+                    "second effect on top: a lookalike that fits 'evidence' worse than the verdict there is dropped")
     excess: dict[str, float] = Field(description="each candidate's replayed fit: its sum of squares above the best "
                                                  "one's, in units of the best one's mean square per sample (2·ln of a "
                                                  "likelihood ratio on white noise; 0 = the best)")

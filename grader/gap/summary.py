@@ -193,6 +193,10 @@ def _which(d: Diagnosis, best: Candidate) -> str:
                      f"{_would(v.second_separating_test, 'separate them')}.")
         if nested is None:
             text += _replayed(d, "second_effect", v.second_effect)
+        beside = _apart(d, "verdict_with_second_effect", v.effect)  # lookalikes of the verdict dropped beside the pair
+        if beside:
+            text += (f" With {effect_name(v.second_effect)} on top, replayed through the controller output the rig "
+                     f"recorded, the runs follow {effect_name(v.effect)} better than {beside}.")
     elif v.second_effect == "sensor_quantization":
         text += f" {_quantization(d)}"
     return text

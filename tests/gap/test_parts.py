@@ -263,20 +263,28 @@ def test_an_interval_is_at_least_its_model_form_floor(monkeypatch: pytest.Monkey
     assert v.interval == pytest.approx((v.value - half, v.value + half), rel=1e-5)
 
 
-@pytest.mark.parametrize(("heldout", "fit", "kept"), [
-    (0.0204, 0.05, True),    # scores within TIE of the named pair held out: a lookalike
-    (0.03, 0.0205, True),    # fits all runs within TIE_FIT of the floor's mean square: a lookalike
-    (0.03, 0.021, False),    # worse both ways: told apart
-    (0.019, 0.019, True),    # better in the verdict's place: still a doubt
+@pytest.mark.parametrize(("heldout", "fit", "replayed", "kept"), [
+    (0.0204, 0.05, None, True),    # scores within TIE of the named pair held out: a lookalike
+    (0.03, 0.0205, None, True),    # fits all runs within TIE_FIT of the floor's mean square: a lookalike
+    (0.03, 0.021, None, False),    # worse both ways: told apart
+    (0.019, 0.019, None, True),    # better in the verdict's place: still a doubt
+    (0.019, 0.019, "idle", False),  # fits as well only with the tie at no strength: the addition does it all
+    (0.0204, 0.05, (0.0, 7.0, 0.8), False),   # a lookalike in the closed loop, told apart on the replayed runs
+    (0.0204, 0.05, (0.0, 5.0, 0.8), True),    # replayed within EVIDENCE of the named pair
+    (0.0204, 0.05, (0.0, 700.0, 3.0), True),  # a replay that fits badly decides nothing
+    (0.0204, 0.05, (9.0, 0.0, 0.8), True),    # the replay prefers the tie's pair: still a doubt
 ])
 def test_a_tie_of_the_verdict_stays_its_lookalike_beside_a_pair_only_where_it_fits_as_well_in_its_place(
-        monkeypatch: pytest.MonkeyPatch, heldout: float, fit: float, kept: bool) -> None:
+        monkeypatch: pytest.MonkeyPatch, heldout: float, fit: float, replayed: tuple[float, float, float] | str | None,
+        kept: bool) -> None:
     """A tie of the verdict alone is put in its place with the same addition on top (searched from the tie's own
-    optimum, the addition in the form named: here a second-order spool) and kept by the rule of a lookalike; the
-    effect named on top is no doubt of the verdict, and is not fitted again."""
-    import grader.gap.pairs as diag
-    from grader.gap import spool
+    optimum, the addition in the form named: here a second-order spool; and fitted from there with the addition
+    where the named pair's ended, the better of the two standing) and kept where it still acts there by the rule of
+    a lookalike, then unless the replayed runs, where recorded, decide and tell the pairs apart with the named one
+    better; the effect named on top is no doubt of the verdict, and is not fitted again."""
+    from grader.gap import pair_ties, replay, spool
     from grader.gap.baseline import Baseline
+    from grader.gap.pairs import Second
     from grader.gap.search import SearchResult
 
     base = load_station("default").params()
@@ -287,20 +295,48 @@ def test_a_tie_of_the_verdict_stays_its_lookalike_beside_a_pair_only_where_it_fi
     found = SearchResult(states, [], [1] * 6)
     pair = spool.second_order(combine(cands["valve_saturation"], cands["valve_dynamics"]))
     named = Scored(pair.effect, np.full(6, 0.02), np.full(6, 0.02), 3, 0.5)
-    extra = diag.Second(FitState(pair, tuple(range(6)), np.append(lin, [0.3, 0.4, 0.7]), np.full(6, 0.02)),
-                        None, named, ())  # type: ignore[arg-type]
+    extra = Second(FitState(pair, tuple(range(6)), np.append(lin, [0.3, 0.4, 0.7]), np.full(6, 0.02)),
+                   None, named, ())  # type: ignore[arg-type]
+    combo = spool.second_order(combine(cands["coulomb_friction"], cands["valve_dynamics"]))
+    tie_strength = 0.0 if replayed == "idle" else 0.3
+    near = FitState(combo, tuple(range(6)), np.append(lin, [tie_strength, 0.4, 0.7]), np.full(6, fit))
+    searched_end = FitState(combo, tuple(range(6)), np.append(lin, [0.3, 0.1, 0.7]), np.full(6, 2 * fit))
     searched: list[tuple[str, list[str], dict]] = []
+    started: list[np.ndarray] = []
 
     def second_effect(objs, base, first, others, executor=None):  # type: ignore[no-untyped-def]
         searched.append((first.candidate.effect, [p.name for p in others[0].params], dict(others[0].fixed)))
-        return "searched"
+        return SearchResult([searched_end, first], [], [1] * 6)
 
-    monkeypatch.setattr(diag, "second_effect", second_effect)
-    monkeypatch.setattr(diag, "scored_of", lambda found: [Scored("coulomb_friction+valve_dynamics",
-                                                                 np.full(6, heldout), np.full(6, fit), 3, 0.5)])
-    out = diag.untied([], Baseline(base, "test", "constructed"), found, 0, [1, 2], extra, np.full(6, 0.01), None)
+    def refit(objs, base, start, executor=None):  # type: ignore[no-untyped-def]
+        assert start.candidate.effect == combo.effect
+        started.append(start.theta)
+        return SearchResult([near], [], [1] * 6)
+
+    def compare(runs, base, fits, indices, sigma, executor=None):  # type: ignore[no-untyped-def]
+        assert fits == [extra.state, near] and list(indices) == [0, 1]
+        named_x, alt_x, quality = replayed  # type: ignore[misc]
+        return replay.Replay((0, 1), (named_x, alt_x), (0, 1), int(alt_x < named_x), quality)
+
+    def scored_of(found: SearchResult) -> list[Scored]:
+        assert found.states[0] is near  # the better of the two fits stands
+        return [Scored(combo.effect, np.full(6, heldout), np.full(6, fit), 3, 0.5)]
+
+    monkeypatch.setattr(pair_ties, "second_effect", second_effect)
+    monkeypatch.setattr(pair_ties, "refit", refit)
+    monkeypatch.setattr(pair_ties, "scored_of", scored_of)
+    monkeypatch.setattr(pair_ties.replay, "replayable", lambda runs: isinstance(replayed, tuple))
+    monkeypatch.setattr(pair_ties.replay, "compare", compare)
+    out, info, why = pair_ties.untied([], Baseline(base, "test", "constructed"), found, 0, [1, 2], extra,
+                                      np.full(6, 0.01), 1e-4, None)
     assert out == ([1] if kept else [])
     assert searched == [("coulomb_friction", ["tau", "zeta"], {"valve_dynamics": {"order": 2.0}})]
+    # the second fit starts from the tie's optimum with the addition where the named pair's ended
+    assert len(started) == 1 and np.allclose(started[0], np.append(lin, [0.3, 0.4, 0.7]))
+    assert [r.of for r in info] == (["verdict_with_second_effect"] if isinstance(replayed, tuple) else [])
+    # why: the pair told apart in the closed loop, or a replay that decides (apart, or not apart either)
+    said = not kept if not isinstance(replayed, tuple) else replayed[2] <= replay.GOOD
+    assert ("coulomb_friction" in why) == said
 
 
 @pytest.mark.parametrize(("spool_r", "kept", "line_r", "expect"), [

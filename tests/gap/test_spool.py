@@ -204,6 +204,28 @@ def test_a_second_order_spool_on_top_of_a_current_limit_is_named_and_no_doubt_of
     assert pair.params["valve_dynamics.order"].value == 2.0
 
 
+def test_a_slow_lag_on_top_of_a_deadband_is_named_once_fitted_from_its_line(tmp_path: Path,
+                                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """Run A's 0299 (a 4.2 ms lag with a 2.3 mA deadband): searched from the deadband's optimum, the lag on top
+    ended worse than the deadband alone and was left out, a current limit fitted best of the additions, and the
+    deadband was named alone, beside Coulomb friction. Fitted again from its line of starts, the lag on top is the
+    second effect, and Coulomb friction in the deadband's place is no lookalike."""
+    moved: list[bool] = []
+    line = pairs._lag_from_line
+
+    def spy(*args, **kwargs):  # type: ignore[no-untyped-def]
+        out = line(*args, **kwargs)
+        moved.append(out is not args[3])
+        return out
+
+    monkeypatch.setattr(pairs, "_lag_from_line", spy)
+    task, d = _seed_300_case(299, tmp_path)
+    assert set(task.label.split("+")) == {"valve_deadband", "valve_dynamics"}
+    assert moved == [True]  # the line's fit stands in the pair search
+    assert (d.verdict.effect, d.verdict.second_effect) == ("valve_deadband", "valve_dynamics")
+    assert d.verdict.indistinguishable_from == [] and d.verdict.second_indistinguishable_from == []
+
+
 def test_a_spool_the_delay_verdict_took_for_is_named_by_the_replay_in_its_form(tmp_path: Path) -> None:
     """Run A's 0278: a 4.4 ms spool of damping 0.96 with a 0.34 ms delay. The closed loop ranks a 2.7 ms delay
     first; the replayed runs follow the second-order spool by thousands in 2·ln likelihood, and it is named, its
