@@ -163,9 +163,10 @@ def _lag_from_line(objs: Sequence[RunObjective], base: baseline_mod.Baseline, fi
     the lag is the best kept addition, or where the lag ended worse than ``first`` alone refitted in the same search,
     which it nests but for its least time constant, 0.1 ms. Kept where the refit could pass the bar
     (:func:`could_pass`, against that refit and ``first_scored``, as the search kept the others), in candidate
-    ``order``; else left out, as a better start for the replay. Run A's 0254, a 4 ms spool with 7 lbf of Coulomb friction: searched from the friction's optimum,
-    the lag on top ended 1.7 times worse than the friction alone and was left out, and a current limit was named on
-    top; from its line, it ends 3.5 times better than the friction alone, better than any other addition."""
+    ``order``; else left out, as a better start for the replay. Run A's 0254, a 4 ms spool with 7 lbf of Coulomb
+    friction: searched from the friction's optimum, the lag on top ended 1.7 times worse than the friction alone
+    and was left out, and a current limit was named on top; from its line, it ends 3.5 times better than the
+    friction alone, better than any other addition."""
     pool = [*found.states[:-1], *found.dropped]
     added = [s.candidate.names[-1] for s in pool]
     if spool.DELAY not in added or spool.SPOOL not in added:

@@ -185,8 +185,9 @@ class ReplayInfo(_Frozen):
                     "verdict); where no addition passes the bar, every addition fitted and, as 'none', the verdict "
                     "alone; or (dropped_second_effect) a second effect the closed loop's bar named and, as 'none', the "
                     "verdict alone, where the replay did not bear it out: it is then not named; or "
-                    "(verdict_with_second_effect) the verdict and the lookalikes it kept beside the pair, each with the "
-                    "second effect on top: a lookalike that fits 'evidence' worse than the verdict there is dropped")
+                    "(verdict_with_second_effect) the verdict and the lookalikes it kept beside the pair, each with "
+                    "the second effect on top: a lookalike that fits 'evidence' worse than the verdict there is "
+                    "dropped")
     excess: dict[str, float] = Field(description="each candidate's replayed fit: its sum of squares above the best "
                                                  "one's, in units of the best one's mean square per sample (2·ln of a "
                                                  "likelihood ratio on white noise; 0 = the best)")
