@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy import linalg
 
@@ -103,8 +103,12 @@ def test_controller_reads_the_given_noise(p: RigParams) -> None:
 
 @settings(max_examples=15, deadline=None)
 @given(st.floats(1e-5, 5e-3), st.sampled_from([0, 1]), st.floats(1e4, 4e4), st.floats(2e-4, 3e-3))
+@example(h=0.003626023667346819, stuck=0, bv=10000.0, kce=0.001953125)  # 2e-12 apart: failed a 1e-12 bound once
 def test_zero_order_hold_matrices_match_scipy_expm(station: Station, h: float, stuck: int, bv: float,
                                                    kce: float) -> None:
+    """The engine's scaling and squaring against scipy's: each row to 1e-10 of its largest entry. Both round by
+    about ‖A·h‖·2^s machine epsilons; over 3,000 random draws of this range they differed by at most 3.2e-12 (h of
+    3.6 ms, β/Vt 27,000 psi/in³), which a bound of 1e-12 met on most but not all of hypothesis's draws."""
     p = station.params().with_(beta_over_Vt=bv, Kce=kce)
     e = EffectSet.parse(["valve_dynamics:tau=1ms,order=2,zeta=0.5", "viscous_friction:B=0.3lbf*s/in"])
     par = hydraulic.pack(resolve(p, Controller(10), e))[0]
@@ -116,8 +120,8 @@ def test_zero_order_hold_matrices_match_scipy_expm(station: Station, h: float, s
     big[:5, :5], big[:5, 5:] = ac * h, bc * h
     ref = linalg.expm(big)
     scale = np.abs(ref[:5]).max(axis=1, keepdims=True) + 1e-300
-    np.testing.assert_allclose(phi / scale, ref[:5, :5] / scale, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(gam / scale, ref[:5, 5:] / scale, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(phi / scale, ref[:5, :5] / scale, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(gam / scale, ref[:5, 5:] / scale, rtol=0, atol=1e-10)
 
 
 def test_a_model_too_stiff_to_step_fails_or_is_skipped_instead_of_running_for_hours(station: Station) -> None:
