@@ -213,6 +213,16 @@ def combine(first: Candidate, second: Candidate) -> Candidate:
                      {**first.fixed, **second.fixed}, first.names + second.names, first.null_scale)
 
 
+def split_last(c: Candidate) -> tuple[Candidate, Candidate]:
+    """``c`` = :func:`combine` (head, last) taken apart again: (head, last), each with its own parameters and held
+    values, the null with head (a single effect's head is ``none``)."""
+    name = c.names[-1]
+    own = tuple(p for p in c.params if p.effect == name)
+    head = Candidate(c.effect.rsplit("+", 1)[0] if len(c.names) > 1 else NONE, c.params[:len(c.params) - len(own)],
+                     {k: v for k, v in c.fixed.items() if k != name}, c.names[:-1], c.null_scale)
+    return head, Candidate(name, own, {k: v for k, v in c.fixed.items() if k == name}, (name,))
+
+
 def make_candidates(base: RigParams, names: Sequence[str] | None = None, *, demand: float | None = None) -> list[Candidate]:
     """``none`` and every physical canonical effect but :data:`NOT_FROM_RUNS` (or only ``names``), in canonical
     order; ``demand`` [mA], the largest valve current the runs ask for, sets the range a current limit is

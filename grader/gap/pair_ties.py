@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from grader.gap import baseline as baseline_mod
 from grader.gap import replay
-from grader.gap.candidates import Candidate
+from grader.gap.candidates import Candidate, split_last
 from grader.gap.fit import FitState
 from grader.gap.objective import RunObjective
 from grader.gap.pairs import Second, scored_of
@@ -49,10 +49,8 @@ def untied(objs: Sequence[RunObjective], base: baseline_mod.Baseline, found: Sea
     (:func:`grader.gap.verdict.lookalikes`: within TIE held out, or within TIE_FIT of the floor ``floor_nrmse``
     leaves in all-runs mean square), and then, where every run recorded its controller output, on the replayed runs
     (reading noise ``sigma`` [in]) unless they decide and tell the pair apart from the named one."""
-    pair, added = extra.state.candidate, extra.state.candidate.names[-1]
-    first = found.states[verdict].candidate
-    second = Candidate(added, pair.params[len(first.params):], {k: v for k, v in pair.fixed.items() if k == added},
-                       (added,))
+    first, second = split_last(extra.state.candidate)
+    added = second.effect
     named, floor = extra.scored, TIE_FIT * float(np.mean(floor_nrmse**2))
     kept, fits, gone = [], [], []
     for i in ties:

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from grader.gap.backend import Point
-from grader.gap.candidates import Array, Candidate, FitParam
+from grader.gap.candidates import Array, Candidate, FitParam, split_last
 from grader.gap.fit import FitState
 from grader.gap.objective import RunObjective
 from grader.gap.search import SearchResult, screened, search_from
@@ -109,7 +109,7 @@ def _line(c: Candidate, base: RigParams, delay: FitState, head: Array | None,
     p_tau = c.params[-own]
     lo, hi = c.bounds(base)
     first = np.zeros(c.n_theta - own) if head is None else np.asarray(head, dtype=float)
-    alone = Candidate("alone", c.params[:-own], c.fixed, c.names[:-1], c.null_scale)
+    alone = split_last(c)[0]
     leads = ((np.asarray(delay.theta[:-1]), delay.candidate.point(base, delay.theta)),
              (first, alone.point(base, first)))
     tails = ([[m, z / DAMPING.scale] for m in p_tau.grid(LINE_POINTS) for z in dampings] if dampings else

@@ -393,3 +393,21 @@ def test_a_lag_on_top_that_ended_at_a_poor_optimum_is_fitted_again_from_its_line
     else:
         assert names == ["sampling_delay", "valve_saturation", "coulomb_friction"]
         assert out.dropped == [line if expect == "dropped" else lag]
+
+
+@pytest.mark.parametrize("second", ["valve_dynamics", "pressure_flow_nonlinearity", "valve_saturation"])
+def test_a_combination_taken_apart_gives_back_its_parts(second: str) -> None:
+    """:func:`split_last` undoes :func:`combine`: the head keeps its parameters, held values and the null, the last
+    effect its own (a second-order spool's held order; the orifice law has no parameter); a single effect's head is
+    ``none``, with the same θ lead."""
+    from grader.gap import spool
+    from grader.gap.candidates import NONE, split_last
+
+    base = load_station("default").params()
+    c = {x.effect: x for x in make_candidates(base, ["valve_hysteresis", second])}
+    head = c["valve_hysteresis"].with_null(0.2, np.zeros(c["valve_hysteresis"].n_theta))[0]  # the null fitted
+    assert head.null_scale > 0
+    last = spool.second_order(c[second]) if second == "valve_dynamics" else c[second]
+    assert split_last(combine(head, last)) == (head, last)
+    none, alone = split_last(last)
+    assert alone == last and none.effect == NONE and none.params == () and none.n_theta == last.lead
