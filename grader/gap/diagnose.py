@@ -361,8 +361,7 @@ def analyse(dataset_dir: str | Path, *, key: str | Path | None = None, effects: 
     lg = None
     if fr is None and not base.kpot_from_flow_test:  # the flow test against the runs' loop gain (not against itself)
         lg = evidence.loop_gain(ds, next(c for c in cands if c.effect == verdict.effect), base.params)
-    verdict = evidence.viscous_from_loop_gain(evidence.viscous(verdict, fr), lg)
-    verdict = evidence.quantized(evidence.viscous_unexcluded(verdict, fr, lg), quant)
+    verdict = evidence.beside_runs(verdict, fr, lg, quant)
     aug = _augmented(aug, quant, verdict)
     y_aug = Backend(runs).all_runs([aug])[0]
     unstable = next((r for r in runs if r.kind == "instability"), None)

@@ -31,7 +31,7 @@ from grader.datasets import Dataset
 from grader.errors import IdentificationError
 from grader.gap import build
 from grader.gap.candidates import NONE
-from grader.gap.quantization import Quantization
+from grader.gap.quantization import QUANTIZATION, Quantization
 from grader.gap.schema import Candidate, LoopGainInfo, Value, Verdict
 from grader.gap.separating import separating_test
 from grader.gap.verdict import Ranking
@@ -89,8 +89,9 @@ def friction(ds: Dataset) -> Friction | None:
 
 
 def _add(verdict: Verdict, name: str, text: str) -> Verdict:
-    """``name`` as the verdict (if it is none) or as its second effect (if that is free). A verdict named
-    this way has no margin over the runs' runner-up (the runs alone rank it with ``none``)."""
+    """``name`` as the verdict (if it is none) or as its second effect (if that is free), else told in the
+    explanation as a third effect, not named (a verdict names two at most). A verdict named this way has no margin
+    over the runs' runner-up (the runs alone rank it with ``none``)."""
     if verdict.effect == NONE:
         return verdict.model_copy(update={"effect": name, "shares": {name: 1.0}, "explanation": text, "margin": 0.0,
                                           "runner_up": NONE, "indistinguishable_from": [], "separating_test": None,
@@ -98,7 +99,8 @@ def _add(verdict: Verdict, name: str, text: str) -> Verdict:
     if verdict.second_effect is None:  # no share of the held-out shrink: it is not fitted to the runs
         return verdict.model_copy(update={"second_effect": name, "shares": {**verdict.shares, name: 0.0},
                                           "explanation": f"{verdict.explanation}; and {text}"})
-    return verdict
+    return verdict.model_copy(update={"explanation": f"{verdict.explanation}; beside these two, {text} (a third "
+                                                     f"effect, {name}, not named: a verdict names two at most)"})
 
 
 def coulomb_tie(rk: Ranking, names: list[str], cands: list[Candidate], fr: Friction | None) -> tuple[Ranking, str]:
@@ -128,6 +130,16 @@ def viscous(verdict: Verdict, fr: Friction | None) -> Verdict:
     return _add(verdict, "viscous_friction",
                 f"the friction test shows viscous friction B = {fr.B[0]:.3g} lbf·s/in (95 % interval "
                 f"{fr.B[1]:.3g} to {fr.B[2]:.3g}); in the closed loop it acts as a larger Kce")
+
+
+def beside_runs(verdict: Verdict, fr: Friction | None, lg: LoopGainInfo | None,
+                quant: Quantization | None) -> Verdict:
+    """The runs' ``verdict`` with what the evidence beside them names, the direct readings first: the friction test
+    (:func:`viscous`), the ADC seen in the readings (:func:`quantized`), then the loop gain's deficit
+    (:func:`viscous_from_loop_gain`), and a ``none`` verdict's viscous friction not ruled out
+    (:func:`viscous_unexcluded`)."""
+    verdict = quantized(viscous(verdict, fr), quant)
+    return viscous_unexcluded(viscous_from_loop_gain(verdict, lg), fr, lg)
 
 
 def quantized(verdict: Verdict, quant: Quantization | None) -> Verdict:
@@ -261,11 +273,24 @@ def viscous_unexcluded(verdict: Verdict, fr: Friction | None, lg: LoopGainInfo |
 
 def viscous_from_loop_gain(verdict: Verdict, lg: LoopGainInfo | None) -> Verdict:
     """Viscous friction as the verdict (the runs name nothing) or as its second effect (the runs name one effect,
-    whose fit gave the Kq compared) when the loop gain shows it (module docstring)."""
-    if lg is None or not lg.names_viscous or lg.candidate != verdict.effect or verdict.second_effect is not None:
+    whose fit gave the Kq compared) when the loop gain shows it (module docstring). The ADC, seen in the readings
+    themselves, comes first (:func:`quantized`, applied before): where it took the place viscous friction would
+    take (the runs name nothing, or one effect and the ADC is beside it), the deficit is told in the explanation
+    and viscous friction is not named. The runs' fits have no ADC in their loop, so their Kq carries what the ADC
+    does: an independent simulator's 25.7 mA current limit with a 10-bit ADC showed a deficit of 3.6 % (2.9
+    standard errors) with no viscous friction, and was named a current limit with viscous friction."""
+    runs_named = NONE if verdict.effect == QUANTIZATION else verdict.effect  # the ADC is named from the readings
+    if lg is None or not lg.names_viscous or lg.candidate != runs_named:
         return verdict
     b, iv = lg.viscous_B.value, lg.viscous_B.interval or (lg.viscous_B.value,) * 2
-    return _add(verdict, "viscous_friction",
-                f"the runs' loop gain is {100 * lg.deficit:.2g} % below the flow test's Kq ({lg.deficit_z:.2g} "
-                f"standard errors): viscous friction B = {b:.3g} lbf·s/in (95 % interval {iv[0]:.3g} to {iv[1]:.3g}) "
-                "reconciles them, which the runs alone take for a larger Kce and a smaller Kq")
+    shown = (f"the runs' loop gain is {100 * lg.deficit:.2g} % below the flow test's Kq ({lg.deficit_z:.2g} "
+             f"standard errors): viscous friction B = {b:.3g} lbf·s/in (95 % interval {iv[0]:.3g} to {iv[1]:.3g}) "
+             "reconciles them")
+    if QUANTIZATION in (verdict.effect, verdict.second_effect):
+        test = separating_test(NONE, ["viscous_friction"])
+        return verdict.model_copy(update={"explanation": (
+            f"{verdict.explanation}; {shown}, but it is not named beside the ADC: the runs' fits have no ADC in "
+            f"their loop, so their Kq carries what the ADC does; {test} would show it")})
+    if verdict.second_effect is not None:
+        return verdict
+    return _add(verdict, "viscous_friction", f"{shown}, which the runs alone take for a larger Kce and a smaller Kq")

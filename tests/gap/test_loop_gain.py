@@ -14,8 +14,9 @@ from hypothesis import strategies as st
 
 from grader.datasets import load
 from grader.gap.diagnose import analyse
-from grader.gap.evidence import B_REALISTIC, DEFICIT_Z, Z95, _log_se, _rel_se, _roots, loop_gain, names_viscous, \
-    viscous_b, viscous_from_loop_gain
+from grader.gap.evidence import B_REALISTIC, DEFICIT_Z, Z95, Friction, _log_se, _rel_se, _roots, beside_runs, \
+    loop_gain, names_viscous, viscous_b, viscous_from_loop_gain
+from grader.gap.quantization import Quantization
 from grader.gap.schema import LoopGainInfo, Value, Verdict
 from grader.gap.summary import summary
 from grader.identify import PotCalibration
@@ -200,3 +201,58 @@ def test_viscous_friction_is_added_alone_or_beside_exactly_when_the_loop_gain_na
     else:
         assert out.second_effect == "viscous_friction"
         assert set(out.shares) == {"valve_hysteresis", "viscous_friction"}
+
+
+def _runs_verdict(effect: str, second: str | None = None) -> Verdict:
+    named = [e for e in (effect, second) if e and e != "none"]
+    return Verdict(effect=effect, margin=1.0, runner_up="none", confidence=1.0, indistinguishable_from=[],
+                   shares={e: 1.0 / len(named) for e in named}, explanation=effect, second_effect=second)
+
+
+def _deficit(candidate: str) -> LoopGainInfo:
+    kq = Value(value=0.0431, unit="in**3/s/mA", interval=(0.0428, 0.0433))
+    return LoopGainInfo(flow_test_Kq=kq, runs_Kq=kq, candidate=candidate, deficit=0.036, deficit_z=2.94,
+                        viscous_B=Value(value=1.2, unit="lbf*s/in", interval=(0.4, 1.5)), names_viscous=True)
+
+
+#: a 10-bit ADC whose step is 7.7 % of the step command: it matters
+ADC = Quantization(step=0.0154, share=0.077, bits=10.0, limit_cycle=True)
+FRICTION_B = Friction(Fc=(0.0, -0.1, 0.1), B=(1.0, 0.6, 1.4))  # a friction test that shows B, not Fc
+
+
+@pytest.mark.parametrize("runs, fr, lg, quant, named, told", [
+    # the ADC, seen in the readings, takes the place the deficit would take; the deficit is told, not named
+    (("valve_saturation",), None, "valve_saturation", ADC, ("valve_saturation", "sensor_quantization"),
+     "not named beside the ADC"),
+    (("none",), None, "none", ADC, ("sensor_quantization", None), "not named beside the ADC"),
+    # without the ADC the deficit names viscous friction, as before
+    (("valve_saturation",), None, "valve_saturation", None, ("valve_saturation", "viscous_friction"),
+     "reconciles them"),
+    (("none",), None, "none", None, ("viscous_friction", None), "reconciles them"),
+    # a deficit of another fit than the runs' verdict names nothing and is not told
+    (("valve_saturation",), None, "none", ADC, ("valve_saturation", "sensor_quantization"), None),
+    # the friction test's B first; the ADC then a third effect, told and not named
+    (("valve_hysteresis",), FRICTION_B, None, ADC, ("valve_hysteresis", "viscous_friction"),
+     "a third effect, sensor_quantization, not named"),
+    # a pair the runs name: the ADC beside it told as a third effect; the first effect's deficit not told
+    (("valve_hysteresis", "valve_deadband"), None, "valve_hysteresis", ADC, ("valve_hysteresis", "valve_deadband"),
+     "a third effect, sensor_quantization, not named"),
+])
+def test_evidence_beside_the_runs_names_the_direct_readings_first(runs: tuple[str, ...], fr: Friction | None,
+                                                                   lg: str | None, quant: Quantization | None,
+                                                                   named: tuple[str, str | None],
+                                                                   told: str | None) -> None:
+    """The friction test and the ADC, read directly, are named before the loop gain's deficit, which an ADC the
+    runs' fits lack in their loop biases (an independent simulator's current limit with a 10-bit ADC: a 3.6 %
+    deficit of 2.9 standard errors, and no viscous friction); what does not fit in the verdict's two places is told
+    in its explanation, never dropped."""
+    verdict = _runs_verdict(*runs)
+    out = beside_runs(verdict, fr, None if lg is None else _deficit(lg), quant)
+    assert (out.effect, out.second_effect) == named
+    assert set(out.shares) == set(named) - {None}
+    if told is None:
+        assert "loop gain" not in out.explanation
+    else:
+        assert told in out.explanation
+    if "ADC" in (told or "") and "not named" in (told or ""):
+        assert "the friction test at several speeds" in out.explanation  # the test that would show B
