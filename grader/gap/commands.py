@@ -46,14 +46,10 @@ def _collector_off() -> Iterator[None]:
 
 
 def _diagnose(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from grader.datasets import read_manifest
     from grader.gap.figures import plot_helpers
 
     t0 = time.perf_counter()
     out = output_folder(args.out)
-    read_manifest(Path(args.dataset))  # a wrong folder or manifest is told at once, before the helpers start
     # The figure helpers are forked first: they import matplotlib while this process imports scipy.
     with _collector_off(), plot_helpers() as helpers:
         from grader.gap.diagnose import analyse
