@@ -32,8 +32,8 @@ from grader.errors import IdentificationError
 from grader.gap import build
 from grader.gap.candidates import NONE
 from grader.gap.quantization import QUANTIZATION, Quantization
-from grader.gap.schema import Candidate, LoopGainInfo, Value, Verdict
-from grader.gap.separating import separating_test
+from grader.gap.schema import TIE_TO_COULOMB, Candidate, LoopGainInfo, Value, Verdict
+from grader.gap.separating import separating_test, would
 from grader.gap.verdict import Ranking
 from grader.identify.estimate import Z95, Estimate
 from grader.model.effects import EFFECTS
@@ -99,8 +99,9 @@ def _add(verdict: Verdict, name: str, text: str) -> Verdict:
     if verdict.second_effect is None:  # no share of the held-out shrink: it is not fitted to the runs
         return verdict.model_copy(update={"second_effect": name, "shares": {**verdict.shares, name: 0.0},
                                           "explanation": f"{verdict.explanation}; and {text}"})
-    return verdict.model_copy(update={"explanation": f"{verdict.explanation}; beside these two, {text} (a third "
-                                                     f"effect, {name}, not named: a verdict names two at most)"})
+    return verdict.model_copy(update={"not_named": [*verdict.not_named, name], "explanation": (
+        f"{verdict.explanation}; beside these two, {text} (a third effect, {name}, not named: a verdict names two at "
+        "most)")})
 
 
 def coulomb_tie(rk: Ranking, names: list[str], cands: list[Candidate], fr: Friction | None) -> tuple[Ranking, str]:
@@ -119,7 +120,7 @@ def coulomb_tie(rk: Ranking, names: list[str], cands: list[Candidate], fr: Frict
     ties = [old, *(i for i in rk.ties if i != c)]
     order = [c, old, *(i for i in rk.order if i not in (c, old))]
     why = (f"the friction test shows Fc = {fr.Fc[0]:.3g} lbf, inside the fitted Coulomb level's interval, "
-           f"so the tie goes to coulomb_friction")
+           f"{TIE_TO_COULOMB}")
     return replace(rk, order=order, verdict=c, runner_up=old, margin=0.0, ties=ties), why
 
 
@@ -268,7 +269,7 @@ def viscous_unexcluded(verdict: Verdict, fr: Friction | None, lg: LoopGainInfo |
         "not_ruled_out": [*verdict.not_ruled_out, "viscous_friction"],
         "separating_test": verdict.separating_test or test,
         "explanation": f"{verdict.explanation}; viscous friction{upto} cannot be ruled out without a friction test "
-                       f"(in the closed loop it acts as a larger Kce): {test} would show it"})
+                       f"(in the closed loop it acts as a larger Kce): {would(test, 'show it')}"})
 
 
 def viscous_from_loop_gain(verdict: Verdict, lg: LoopGainInfo | None) -> Verdict:
@@ -280,17 +281,17 @@ def viscous_from_loop_gain(verdict: Verdict, lg: LoopGainInfo | None) -> Verdict
     does: an independent simulator's 25.7 mA current limit with a 10-bit ADC showed a deficit of 3.6 % (2.9
     standard errors) with no viscous friction, and was named a current limit with viscous friction."""
     runs_named = NONE if verdict.effect == QUANTIZATION else verdict.effect  # the ADC is named from the readings
-    if lg is None or not lg.names_viscous or lg.candidate != runs_named:
+    if (lg is None or not lg.names_viscous or lg.candidate != runs_named
+            or "viscous_friction" in (verdict.effect, verdict.second_effect)):
         return verdict
     b, iv = lg.viscous_B.value, lg.viscous_B.interval or (lg.viscous_B.value,) * 2
     shown = (f"the runs' loop gain is {100 * lg.deficit:.2g} % below the flow test's Kq ({lg.deficit_z:.2g} "
              f"standard errors): viscous friction B = {b:.3g} lbf·s/in (95 % interval {iv[0]:.3g} to {iv[1]:.3g}) "
              "reconciles them")
     if QUANTIZATION in (verdict.effect, verdict.second_effect):
-        test = separating_test(NONE, ["viscous_friction"])
-        return verdict.model_copy(update={"explanation": (
-            f"{verdict.explanation}; {shown}, but it is not named beside the ADC: the runs' fits have no ADC in "
-            f"their loop, so their Kq carries what the ADC does; {test} would show it")})
+        return verdict.model_copy(update={"not_named": [*verdict.not_named, "viscous_friction"], "explanation": (
+            f"{verdict.explanation}; {shown}, but viscous friction is not named: the runs' fits lack the ADC, which "
+            f"biases their Kq; {would(separating_test(NONE, ['viscous_friction']), 'show it')}")})
     if verdict.second_effect is not None:
         return verdict
     return _add(verdict, "viscous_friction", f"{shown}, which the runs alone take for a larger Kce and a smaller Kq")

@@ -114,6 +114,11 @@ class Candidate(_Frozen):
                                                        "null where no null is fitted")
 
 
+#: What a verdict's explanation carries where the friction test broke a tie in Coulomb friction's favour
+#: (:func:`grader.gap.evidence.coulomb_tie`; the summary looks for it).
+TIE_TO_COULOMB = "so the tie goes to coulomb_friction"
+
+
 class Verdict(_Frozen):
     effect: str
     margin: float = Field(description="ln(score of the runner-up / score of the verdict); 0 = a tie")
@@ -136,6 +141,12 @@ class Verdict(_Frozen):
                                           "(up to the size the explanation gives); separating_test names the test "
                                           "that would show them. Unlike indistinguishable_from, no lookalike of a "
                                           "named effect")
+    not_named: list[str] = Field(
+        default_factory=list, description="effects the evidence beside the runs shows that the verdict does not name: "
+                                          "a third effect where effect and second_effect are taken (a verdict names "
+                                          "two at most), or viscous friction from the loop gain's deficit beside an "
+                                          "ADC that matters (the runs' fits lack the ADC, which biases their Kq); "
+                                          "the explanation says why")
 
 
 class QuantizationInfo(_Frozen):

@@ -30,3 +30,9 @@ def separating_test(effect: str, others: Sequence[str]) -> str | None:
     if not others:
         return None
     return TESTS.get(frozenset({effect, others[0]}), GENERIC)
+
+
+def would(test: str | None, does: str) -> str:
+    """"<test> would <does> (<why>)" from a separating test "<test>: <why>" (None: another test)."""
+    head, _, why = (test or "another test").partition(": ")
+    return f"{head} would {does}" + (f" ({why})" if why else "")

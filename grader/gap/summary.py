@@ -6,7 +6,8 @@ unmodelled effect causes it, and how much better the model gets with it.
 
 from __future__ import annotations
 
-from grader.gap.schema import Candidate, Diagnosis, ReadOff, ReplayInfo, RunGap, Value
+from grader.gap.schema import TIE_TO_COULOMB, Candidate, Diagnosis, ReadOff, ReplayInfo, RunGap, Value
+from grader.gap.separating import would
 from grader.units import ureg
 
 #: Units shown to students instead of the internal ones, and how they are written.
@@ -125,12 +126,6 @@ def _viscous(d: Diagnosis) -> str:
             "almost exactly as a larger Kce, so the runs alone cannot name it.")
 
 
-def _would(test: str | None, does: str) -> str:
-    """"<test> would <does> (<why>)" from a separating test "<test>: <why>"."""
-    head, _, why = (test or "another test").partition(": ")
-    return f"{head} would {does}" + (f" ({why})" if why else "")
-
-
 def _resamples(confidence: float) -> str:
     """The run-bootstrap confidence in words: a share under one half is said to be only that (with no candidate
     tied, which a verdict that wins on the whole runs can still lack in most resamples)."""
@@ -143,7 +138,7 @@ def _resamples(confidence: float) -> str:
 def _which(d: Diagnosis, best: Candidate) -> str:
     v = d.verdict
     if v.effect == "sensor_quantization":
-        return f"Which effect: sensor quantization. {_quantization(d)}"
+        return f"Which effect: sensor quantization. {_quantization(d)}" + "".join(_not_named(d, e) for e in v.not_named)
     if v.effect == "none":
         text = ("Which effect: none stands out. No candidate effect explains clearly more than the measurement "
                 f"noise (about {show(_floor(d), 'in')} RMS); the linear model is as good as the data allow.")
@@ -154,8 +149,8 @@ def _which(d: Diagnosis, best: Candidate) -> str:
         if v.margin > 0:
             text += (f" It beats the runner-up, {runner}, by a margin of {v.margin:.2g} (log ratio of held-out "
                      f"scores); {_resamples(v.confidence)}.")
-        elif "friction test" in v.explanation and v.effect != "viscous_friction":  # a Coulomb tie broken
-            why = next(part for part in v.explanation.split("; ") if "friction test" in part)
+        elif TIE_TO_COULOMB in v.explanation:  # a Coulomb tie the friction test broke
+            why = next(part for part in v.explanation.split("; ") if TIE_TO_COULOMB in part)
             text += f" The runs alone rank it with {runner}; {why}."
         text += _replayed(d, "verdict", v.effect)
         dropped = next((r for r in d.replay if r.of == "dropped_second_effect"), None)
@@ -165,13 +160,13 @@ def _which(d: Diagnosis, best: Candidate) -> str:
                      "runs replayed through the controller output the rig recorded, so it is not named.")
     if v.indistinguishable_from:
         others = ", ".join(_with_params(d, e) for e in v.indistinguishable_from)
-        text += f" The data cannot tell it apart from: {others}; {_would(v.separating_test, 'separate them')}."
+        text += f" The data cannot tell it apart from: {others}; {would(v.separating_test, 'separate them')}."
     if v.not_ruled_out:
         lg = d.loop_gain
         upto = "" if lg is None or lg.viscous_B.interval is None else \
             f" up to B = {show(lg.viscous_B.interval[1], 'lbf*s/in')}"
         text += (f" It cannot rule out {', '.join(effect_name(e) for e in v.not_ruled_out)}{upto} (in the closed loop "
-                 f"it acts as a larger Kce); {_would(v.separating_test, 'show it')}.")
+                 f"it acts as a larger Kce); {would(v.separating_test, 'show it')}.")
     combo = combination(d)
     if v.second_effect == "viscous_friction" and combo is None or v.effect == "viscous_friction":
         text += f" {_viscous(d)}"
@@ -190,7 +185,7 @@ def _which(d: Diagnosis, best: Candidate) -> str:
         if v.second_indistinguishable_from:
             others = ", ".join(effect_name(e) for e in v.second_indistinguishable_from)
             text += (f" The data cannot tell {effect_name(v.second_effect)} apart from: {others}; "
-                     f"{_would(v.second_separating_test, 'separate them')}.")
+                     f"{would(v.second_separating_test, 'separate them')}.")
         if nested is None:
             text += _replayed(d, "second_effect", v.second_effect)
         beside = _apart(d, "verdict_with_second_effect", v.effect)  # lookalikes of the verdict dropped beside the pair
@@ -199,7 +194,19 @@ def _which(d: Diagnosis, best: Candidate) -> str:
                      f"recorded, the runs follow {effect_name(v.effect)} better than {beside}.")
     elif v.second_effect == "sensor_quantization":
         text += f" {_quantization(d)}"
-    return text
+    return text + "".join(_not_named(d, e) for e in v.not_named)
+
+
+def _not_named(d: Diagnosis, effect: str) -> str:
+    """A sentence on an effect the evidence shows and the verdict does not name (``verdict.not_named``)."""
+    v, lg = d.verdict, d.loop_gain
+    if effect == "viscous_friction" and "sensor_quantization" in (v.effect, v.second_effect) and lg is not None:
+        return (f" The runs' loop gain is {100 * lg.deficit:.2g} % below the flow test's Kq ({lg.deficit_z:.2g} "
+                f"standard errors), which viscous friction B = {show(lg.viscous_B.value, 'lbf*s/in')} would "
+                "reconcile, but viscous friction is not named: the runs' fits lack the ADC, which biases their Kq. "
+                "The friction test would measure it.")
+    said = _quantization(d) if effect == "sensor_quantization" else _viscous(d)
+    return f" A third effect, not named (a verdict names two at most): {effect_name(effect)}. {said}"
 
 
 def by_text(x: float) -> str:

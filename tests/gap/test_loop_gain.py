@@ -17,7 +17,7 @@ from grader.gap.diagnose import analyse
 from grader.gap.evidence import B_REALISTIC, DEFICIT_Z, Z95, Friction, _log_se, _rel_se, _roots, beside_runs, \
     loop_gain, names_viscous, viscous_b, viscous_from_loop_gain
 from grader.gap.quantization import Quantization
-from grader.gap.schema import LoopGainInfo, Value, Verdict
+from grader.gap.schema import LoopGainInfo, QuantizationInfo, Value, Verdict
 from grader.gap.summary import summary
 from grader.identify import PotCalibration
 from grader.identify.estimate import Estimate
@@ -97,6 +97,20 @@ def test_viscous_friction_is_named_from_the_loop_gain_and_its_b_covers_the_truth
     wide = d.model_copy(update={"loop_gain": d.loop_gain.model_copy(update={"viscous_B_larger_root": alt})})
     assert "a rig with more viscous friction and less leakage, B = 1.31 lbf·s/in, gives the same closed loop" \
         in summary(wide)
+    # beside an ADC that matters, the deficit is told and not named (verdict.not_named), and so is the summary
+    adc = QuantizationInfo(adc_step=Value(value=0.0154, unit="in"), share_of_step=0.077, bits=10.0, limit_cycle=True,
+                           matters=True, steady_state_error_band=Value(value=0.0077, unit="in"))
+    told = beside_runs(_runs_verdict("none"), None, d.loop_gain, ADC)
+    with_adc = d.model_copy(update={"verdict": told, "quantization": adc})
+    assert told.not_named == ["viscous_friction"] and "viscous_friction" not in (told.effect, told.second_effect)
+    text = summary(with_adc)
+    assert "Which effect: sensor quantization. The readings are quantised in steps of 0.0154 in" in text
+    assert "Kq (" in text and "viscous friction is not named: the runs' fits lack the ADC" in text
+    # a third effect where both places are taken: named in the summary as not named, with what shows it
+    third = beside_runs(_runs_verdict("valve_hysteresis", "valve_deadband"), None, None, ADC)
+    text = summary(d.model_copy(update={"verdict": third, "quantization": adc}))
+    assert third.not_named == ["sensor_quantization"]
+    assert "A third effect, not named (a verdict names two at most): sensor quantization. The readings" in text
     # a calibration of three readings (one degree of freedom, t = 12.7) widens the deficit's error: z falls
     cand = next(c for c in d.candidates if c.effect == d.loop_gain.candidate)
     base = load_station("default").params()
@@ -223,8 +237,11 @@ FRICTION_B = Friction(Fc=(0.0, -0.1, 0.1), B=(1.0, 0.6, 1.4))  # a friction test
 @pytest.mark.parametrize("runs, fr, lg, quant, named, told", [
     # the ADC, seen in the readings, takes the place the deficit would take; the deficit is told, not named
     (("valve_saturation",), None, "valve_saturation", ADC, ("valve_saturation", "sensor_quantization"),
-     "not named beside the ADC"),
-    (("none",), None, "none", ADC, ("sensor_quantization", None), "not named beside the ADC"),
+     "viscous friction is not named: the runs' fits lack the ADC"),
+    (("none",), None, "none", ADC, ("sensor_quantization", None),
+     "viscous friction is not named: the runs' fits lack the ADC"),
+    # viscous friction the runs named (--effects viscous_friction) is not named twice
+    (("viscous_friction",), None, "viscous_friction", None, ("viscous_friction", None), None),
     # without the ADC the deficit names viscous friction, as before
     (("valve_saturation",), None, "valve_saturation", None, ("valve_saturation", "viscous_friction"),
      "reconciles them"),
@@ -250,9 +267,12 @@ def test_evidence_beside_the_runs_names_the_direct_readings_first(runs: tuple[st
     out = beside_runs(verdict, fr, None if lg is None else _deficit(lg), quant)
     assert (out.effect, out.second_effect) == named
     assert set(out.shares) == set(named) - {None}
+    shown = {*(["viscous_friction"] if fr is not None or (lg == runs[0] or lg == "none" and runs[0] == "none") and
+               len(runs) == 1 else []), *(["sensor_quantization"] if quant is not None else [])}
+    assert set(out.not_named) == shown - set(named)  # what the evidence shows is named or listed, never dropped
     if told is None:
         assert "loop gain" not in out.explanation
     else:
         assert told in out.explanation
-    if "ADC" in (told or "") and "not named" in (told or ""):
-        assert "the friction test at several speeds" in out.explanation  # the test that would show B
+    if "lack the ADC" in (told or ""):  # the test that would show B, worded as a sentence
+        assert "the friction test at several speeds would show it (viscous friction is the slope" in out.explanation
